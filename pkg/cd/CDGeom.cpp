@@ -1,0 +1,101 @@
+#include "CDGeom.hpp"
+#include "ContactDynamicsIntegrator.hpp"
+#include <core/Scene.hpp>
+#include <core/Aabb.hpp>
+#include <pkg/dem/ScGeom.hpp>
+#include <pkg/common/Facet.hpp>
+#include <pkg/common/Wall.hpp>
+
+namespace yade {
+
+YADE_PLUGIN((Bo1_Sphere_CDAabb)(Ig2_Sphere_Sphere_CDScGeom)(Ig2_Wall_Sphere_CDScGeom)(Ig2_Facet_Sphere_CDScGeom));
+
+void Bo1_Sphere_CDAabb::go(const shared_ptr<Shape>& cm, shared_ptr<Bound>& bv, const Se3r& se3, const Body* b)
+{
+	// (periodic cells are rejected by the integrator; never throw here, inside an OpenMP loop)
+	const Real r = static_cast<Sphere*>(cm.get())->radius;
+	if (!bv) bv = shared_ptr<Bound>(new Aabb);
+	const Real     grow = ContactDynamicsIntegrator::alertShare(scene, r, b ? b->state->vel.norm() : Real(0));
+	const Vector3r half = Vector3r::Constant(r + grow);
+	bv->min             = se3.position - half;
+	bv->max             = se3.position + half;
+}
+
+bool Ig2_Sphere_Sphere_CDScGeom::go(
+        const shared_ptr<Shape>&       cm1,
+        const shared_ptr<Shape>&       cm2,
+        const State&                   s1,
+        const State&                   s2,
+        const Vector3r&                shift2,
+        const bool&                    force,
+        const shared_ptr<Interaction>& c)
+{
+	if (!c->isReal() && !force) {
+		const Real r1 = static_cast<Sphere*>(cm1.get())->radius, r2 = static_cast<Sphere*>(cm2.get())->radius;
+		const Real gap   = (s2.pos + shift2 - s1.pos).norm() - r1 - r2;
+		const Real alert = ContactDynamicsIntegrator::alertDistance(scene, math::min(r1, r2), s1.vel.norm() + s2.vel.norm());
+		if (gap > alert) return false;
+	}
+	return Ig2_Sphere_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, /*force*/ true, c);
+}
+
+bool Ig2_Sphere_Sphere_CDScGeom::goReverse(
+        const shared_ptr<Shape>&       cm1,
+        const shared_ptr<Shape>&       cm2,
+        const State&                   s1,
+        const State&                   s2,
+        const Vector3r&                shift2,
+        const bool&                    force,
+        const shared_ptr<Interaction>& c)
+{
+	return go(cm1, cm2, s2, s1, -shift2, force, c);
+}
+
+bool Ig2_Wall_Sphere_CDScGeom::go(
+        const shared_ptr<Shape>&       cm1,
+        const shared_ptr<Shape>&       cm2,
+        const State&                   s1,
+        const State&                   s2,
+        const Vector3r&                shift2,
+        const bool&                    force,
+        const shared_ptr<Interaction>& c)
+{
+	if (!c->isReal() && !force) {
+		const int  ax    = static_cast<Wall*>(cm1.get())->axis;
+		const Real r     = static_cast<Sphere*>(cm2.get())->radius;
+		const Real gap   = math::abs(s2.pos[ax] + shift2[ax] - s1.pos[ax]) - r;
+		const Real alert = ContactDynamicsIntegrator::alertDistance(scene, r, s1.vel.norm() + s2.vel.norm());
+		if (gap > alert) return false;
+	}
+	return Ig2_Wall_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, /*force*/ true, c);
+}
+
+bool Ig2_Facet_Sphere_CDScGeom::go(
+        const shared_ptr<Shape>&       cm1,
+        const shared_ptr<Shape>&       cm2,
+        const State&                   s1,
+        const State&                   s2,
+        const Vector3r&                shift2,
+        const bool&                    force,
+        const shared_ptr<Interaction>& c)
+{
+	if (c->isReal() || force) return Ig2_Facet_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, force, c);
+	// YADE's facet functor creates geometry only on overlap. Ask it about a sphere inflated by
+	// the alert distance; if that one overlaps, the true gap is within the alert distance, and
+	// the geometry is rebuilt for the true radius (YADE's functor accepts any gap once the
+	// geometry exists).
+	const Real r     = static_cast<Sphere*>(cm2.get())->radius;
+	const Real alert = ContactDynamicsIntegrator::alertDistance(scene, r, s1.vel.norm() + s2.vel.norm());
+	thread_local shared_ptr<Shape> inflated(new Sphere);
+	static_cast<Sphere*>(inflated.get())->radius = r + alert;
+	if (!Ig2_Facet_Sphere_ScGeom::go(cm1, inflated, s1, s2, shift2, false, c)) return false;
+	ScGeom*    g   = static_cast<ScGeom*>(c->geom.get());
+	const Real pen = g->penetrationDepth - alert;
+	g->penetrationDepth = pen;
+	g->contactPoint     = s2.pos + shift2 - (r - 0.5 * pen) * g->normal;
+	g->radius1          = hertzian ? g->radius1 * r / (r + alert) : 2 * r;
+	g->radius2          = r;
+	return true;
+}
+
+} // namespace yade

@@ -1,0 +1,89 @@
+// Contact Dynamics plugin for YADE: the single-contact (local) Signorini–Coulomb problem.
+//
+// Notation (Moreau; Jean; Siconos `fc3d`): every vector is written in the contact's local frame
+// (n, t1, t2), normal component first. `r` is the contact impulse exerted on body 2 [N·s],
+// compression positive (r_N ≥ 0). `U` is the relative velocity of body 2 with respect to body 1
+// at the contact point [m/s]; U_N > 0 means the bodies separate.
+//
+// The local problem: given a 3×3 Delassus block W (symmetric positive definite) and a velocity
+// offset b, find r such that U = W r + b obeys the Signorini–Coulomb law
+//
+//     U_N ≥ 0,  r_N ≥ 0,  U_N r_N = 0                             (unilateral)
+//     |r_T| ≤ μ r_N;  |r_T| < μ r_N ⇒ U_T = 0;  else r_T = −μ r_N U_T/|U_T|   (Coulomb)
+//
+// Its three solution branches are the contact status: Open (r = 0), Sticking (U = 0, r inside
+// the cone) and Sliding (r on the cone boundary). The law is the exact cone: no faceting,
+// no decoupling of normal and tangential parts.
+#pragma once
+
+#include <lib/base/Math.hpp>
+
+namespace yade {
+namespace cd {
+
+	enum class ContactStatus : int { Open = 0, Sticking = 1, Sliding = 2 };
+
+	/*! Euclidean projection of z onto the Coulomb cone C_μ = {r : |r_T| ≤ μ r_N}. */
+	inline Vector3r projectOnCone(const Vector3r& z, Real mu)
+	{
+		const Real zt = math::sqrt(z[1] * z[1] + z[2] * z[2]);
+		if (zt <= mu * z[0]) return z;                 // inside
+		if (mu * zt <= -z[0] || zt == 0) return Vector3r::Zero(); // inside the polar cone
+		const Real a = (mu * zt + z[0]) / (1 + mu * mu); // onto the boundary ray
+		return Vector3r(a, mu * a * z[1] / zt, mu * a * z[2] / zt);
+	}
+
+	/*! Natural-map residual of one contact, in velocity units:
+	 *      e(r, U) = (r − P_{C_μ}(r − ρ Û)) / ρ,   Û = U + μ|U_T| e_N (De Saxcé's modified velocity),
+	 *  which vanishes exactly when (r, U) satisfies the Signorini–Coulomb law (Siconos'
+	 *  `fc3d_unitary_compute_and_add_error` uses the same map with ρ = 1). With ρ = 1/W_NN the
+	 *  residual is a velocity, so dividing by free velocities gives a dimensionless error. */
+	inline Vector3r naturalMapResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho)
+	{
+		Vector3r Uhat = U;
+		Uhat[0] += mu * math::sqrt(U[1] * U[1] + U[2] * U[2]);
+		return (r - projectOnCone(r - rho * Uhat, mu)) / rho;
+	}
+
+	/*! Solve the local problem exactly for r (see the file header); returns the status.
+	 *
+	 *  Open: r = 0 is the solution iff b_N ≥ 0. Sticking: r = −W⁻¹b if that lies in the cone.
+	 *  Sliding: r_N = −(b_N + W_NT r_T)/W_NN and r_T = −μ r_N U_T/|U_T|. When the tangential
+	 *  block of W is a multiple of the identity and W_NT = 0 (any sphere contact whose bodies
+	 *  have isotropic inertia and no blocked DOFs), U_T is parallel to b_T and the sliding
+	 *  branch is closed-form; otherwise the coupling terms are iterated to a fixed point
+	 *  (at most `maxInner` passes, relative change 1e-14). */
+	inline ContactStatus solveLocal(const Matrix3r& W, const Vector3r& b, Real mu, Vector3r& r, int maxInner = 50)
+	{
+		if (b[0] >= 0) {
+			r.setZero();
+			return ContactStatus::Open;
+		}
+		const Vector3r stick = -W.ldlt().solve(b);
+		if (stick[0] > 0 && stick[1] * stick[1] + stick[2] * stick[2] <= mu * mu * stick[0] * stick[0]) {
+			r = stick;
+			return ContactStatus::Sticking;
+		}
+		// Sliding. Split W_TT = w I + D (D traceless part), iterate on the coupling terms.
+		const Real wt        = 0.5 * (W(1, 1) + W(2, 2));
+		const bool decoupled = W(0, 1) == 0 && W(0, 2) == 0 && W(1, 2) == 0 && W(1, 1) == W(2, 2);
+		Vector2r   rt = (r[0] > 0) ? Vector2r(r[1], r[2]) : Vector2r::Zero();
+		Real       rn = 0;
+		for (int k = 0; k < maxInner; ++k) {
+			rn = math::max(Real(0), -(b[0] + W(0, 1) * rt[0] + W(0, 2) * rt[1]) / W(0, 0));
+			// tangential velocity without the isotropic self-term: U_T = w r_T + t
+			const Vector2r t(
+			        b[1] + W(1, 0) * rn + (W(1, 1) - wt) * rt[0] + W(1, 2) * rt[1], b[2] + W(2, 0) * rn + W(2, 1) * rt[0] + (W(2, 2) - wt) * rt[1]);
+			const Real tn = t.norm();
+			// r_T = −μ r_N U_T/|U_T| with U_T = w r_T + t  ⇒  r_T = −μ r_N t/|t| (when |t| > w μ r_N)
+			const Vector2r next = (tn > 0) ? Vector2r(-mu * rn * t / tn) : Vector2r::Zero();
+			const Real     dr   = (next - rt).norm();
+			rt                  = next;
+			if (decoupled || dr <= 1e-14 * (math::abs(rn) + rt.norm())) break;
+		}
+		r = Vector3r(rn, rt[0], rt[1]);
+		return rn > 0 ? ContactStatus::Sliding : ContactStatus::Open;
+	}
+
+} // namespace cd
+} // namespace yade

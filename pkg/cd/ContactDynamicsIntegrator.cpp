@@ -1,0 +1,547 @@
+// Contact Dynamics plugin for YADE: Moreau's time-stepping integrator (see the header for the
+// architecture, the contact law and the sign conventions).
+#include "ContactDynamicsIntegrator.hpp"
+#include "CDLocalSolver.hpp"
+#include "CDPhys.hpp"
+#include <core/Clump.hpp>
+#include <core/Scene.hpp>
+#include <pkg/dem/ScGeom.hpp>
+
+#include <algorithm>
+#include <sstream>
+
+namespace yade {
+
+YADE_PLUGIN((ContactDynamicsIntegrator));
+CREATE_LOGGER(ContactDynamicsIntegrator);
+
+namespace {
+	// Default alert parameters, for functors used in a scene without the CD engine.
+	constexpr Real defaultAlertRatio = 0.05, defaultAlertSpeedFactor = 2.0;
+
+	std::string pairName(int id1, int id2) { return "(#" + std::to_string(id1) + ", #" + std::to_string(id2) + ")"; }
+
+	// Any unit vector orthogonal to n, chosen deterministically from n alone.
+	Vector3r orthogonalUnit(const Vector3r& n)
+	{
+		const Vector3r a = (math::abs(n[0]) < 0.57) ? Vector3r::UnitX() : Vector3r::UnitY();
+		return n.cross(a).normalized();
+	}
+	// Cross-product matrix [c]x, so that [c]x p = c × p.
+	Matrix3r skew(const Vector3r& c)
+	{
+		Matrix3r m;
+		m << 0, -c[2], c[1], c[2], 0, -c[0], -c[1], c[0], 0;
+		return m;
+	}
+	bool finite(const Vector3r& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+	// Rotate an orientation by the rotation vector w·dt (exact for constant w).
+	void rotate(Quaternionr& ori, const Vector3r& w, Real dt)
+	{
+		const Real angle = w.norm() * dt;
+		if (angle == 0) return;
+		ori = Quaternionr(AngleAxisr(angle, w.normalized())) * ori;
+		ori.normalize();
+	}
+}
+
+// ----------------------------------------------------------------------------- set-up helpers
+
+void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
+{
+	auto bad = [](const std::string& what) { throw std::invalid_argument("ContactDynamicsIntegrator." + what); };
+	if (!(tolerance > 0)) bad("tolerance=" + std::to_string(tolerance) + ": must be a positive number.");
+	if (maxIter < 1) bad("maxIter=" + std::to_string(maxIter) + ": must be at least 1.");
+	if (checkEvery < 1) bad("checkEvery=" + std::to_string(checkEvery) + ": must be at least 1.");
+	if (!(alertRatio >= 0)) bad("alertRatio=" + std::to_string(alertRatio) + ": must be ≥ 0.");
+	if (!(alertSpeedFactor >= 1)) bad("alertSpeedFactor=" + std::to_string(alertSpeedFactor) + ": must be ≥ 1, or contacts closing within a step are missed.");
+	if (!(positionTolerance > 0)) bad("positionTolerance=" + std::to_string(positionTolerance) + ": must be a positive number.");
+	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
+}
+
+const ContactDynamicsIntegrator* ContactDynamicsIntegrator::find(const Scene* scene)
+{
+	for (const auto& e : scene->engines)
+		if (auto* cd = dynamic_cast<const ContactDynamicsIntegrator*>(e.get())) return cd;
+	return nullptr;
+}
+
+Real ContactDynamicsIntegrator::alertDistance(const Scene* scene, Real rmin, Real speedSum)
+{
+	const ContactDynamicsIntegrator* cd = find(scene);
+	const Real                       ratio = cd ? cd->alertRatio : defaultAlertRatio, k = cd ? cd->alertSpeedFactor : defaultAlertSpeedFactor;
+	return ratio * rmin + k * scene->dt * speedSum;
+}
+
+Real ContactDynamicsIntegrator::alertShare(const Scene* scene, Real radius, Real speed)
+{
+	// Each sphere's box grows by the whole static part of its own alert distance, so that a
+	// fixed wall or facet (whose box does not grow) is covered too.
+	return alertDistance(scene, radius, speed);
+}
+
+boost::python::tuple ContactDynamicsIntegrator::pySolveLocal(const Matrix3r& W, const Vector3r& b, Real mu)
+{
+	if (!(mu >= 0)) throw std::invalid_argument("solveLocal: mu must be ≥ 0.");
+	if (W.ldlt().info() != Eigen::Success || !(W.diagonal().minCoeff() > 0)) throw std::invalid_argument("solveLocal: W must be symmetric positive definite.");
+	Vector3r r = Vector3r::Zero();
+	const int status = int(cd::solveLocal(W, b, mu, r));
+	return boost::python::make_tuple(r, status);
+}
+
+Vector3r ContactDynamicsIntegrator::pyResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho) { return cd::naturalMapResidual(r, U, mu, rho); }
+
+// ----------------------------------------------------------------------------- the step
+
+void ContactDynamicsIntegrator::action()
+{
+	checkScene();
+	gatherContacts();
+	predictPositions();
+	try {
+		updateContactFrames();
+		computeFreeVelocities();
+		assembleLocalProblems();
+		solveImpulses();
+		correctPositions();
+		updatePositions();
+	} catch (...) {
+		restoreStartOfStep(); // a failed step leaves the scene as it found it
+		throw;
+	}
+	storeResults();
+}
+
+// Bad input is reported before anything moves.
+void ContactDynamicsIntegrator::checkScene()
+{
+	const Real h = scene->dt;
+	if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("O.dt=" + std::to_string(h) + ": Contact Dynamics needs a positive, finite time step.");
+	if (scene->isPeriodic) throw std::invalid_argument("ContactDynamicsIntegrator: periodic cells are not supported.");
+	if (damping != 0) throw std::invalid_argument("ContactDynamicsIntegrator.damping=" + std::to_string(damping) + ": must be 0 (CD needs no numerical damping).");
+	if (!finite(gravity)) throw std::invalid_argument("ContactDynamicsIntegrator.gravity is not finite.");
+	postLoad(*this);
+	scene->forces.sync();
+
+	bodies.assign(scene->bodies->size(), SolverBody());
+	for (const auto& b : *scene->bodies) {
+		if (!b) continue;
+		const State& s = *b->state;
+		const string who = "body #" + std::to_string(b->id);
+		if (b->isClump() || b->isClumpMember()) throw std::invalid_argument(who + " is (in) a clump: clumps are not supported by ContactDynamicsIntegrator.");
+		if (!finite(s.pos) || !finite(s.vel) || !finite(s.angVel))
+			throw std::invalid_argument(who + " has a NaN or infinite position or velocity.");
+		SolverBody& sb = bodies[b->id];
+		sb.active      = true;
+		sb.dynamic     = b->isDynamic();
+		sb.vi = sb.v = s.vel;
+		sb.wi = sb.w = s.angVel;
+		sb.pv = sb.pw = Vector3r::Zero();
+		sb.qi         = s.pos;
+		sb.oi         = s.ori;
+		sb.invM.setZero();
+		sb.invI.setZero();
+		if (!sb.dynamic) continue;
+		for (int k = 0; k < 3; ++k) {
+			if (!(s.blockedDOFs & State::axisDOF(k, false))) {
+				if (!(s.mass > 0) || !std::isfinite(s.mass)) throw std::invalid_argument(who + " is dynamic but has mass=" + std::to_string(s.mass) + " (must be > 0).");
+				sb.invM[k] = 1 / s.mass;
+			}
+		}
+		Vector3r invIbody = Vector3r::Zero();
+		bool     anyRot   = false;
+		for (int k = 0; k < 3; ++k)
+			if (!(s.blockedDOFs & State::axisDOF(k, true))) anyRot = true;
+		if (anyRot) {
+			for (int k = 0; k < 3; ++k) {
+				if (!(s.inertia[k] > 0) || !std::isfinite(s.inertia[k]))
+					throw std::invalid_argument(who + " is dynamic but has inertia[" + std::to_string(k) + "]=" + std::to_string(s.inertia[k]) + " (must be > 0).");
+				invIbody[k] = 1 / s.inertia[k];
+			}
+			const Matrix3r R = s.ori.toRotationMatrix();
+			sb.invI          = R * invIbody.asDiagonal() * R.transpose();
+			for (int k = 0; k < 3; ++k)
+				if (s.blockedDOFs & State::axisDOF(k, true)) {
+					sb.invI.row(k).setZero();
+					sb.invI.col(k).setZero();
+				}
+		}
+	}
+}
+
+// Copy every CD contact into the flat array, in a fixed (id1, id2) order: the interaction
+// container's own order changes after O.load or an erase, and Gauss–Seidel depends on order.
+void ContactDynamicsIntegrator::gatherContacts()
+{
+	contacts.clear();
+	for (const auto& I : *scene->interactions) {
+		if (!I->functorCache.geomExists) {
+			const auto& b1 = Body::byId(I->getId1(), scene);
+			const auto& b2 = Body::byId(I->getId2(), scene);
+			if (!(b1 && b1->isDynamic()) && !(b2 && b2->isDynamic())) continue; // two obstacles never meet
+			throw std::invalid_argument(
+			        "no geometry functor for bodies " + pairName(I->getId1(), I->getId2()) + " (shapes " + (b1 ? b1->shape->getClassName() : "?") + ", "
+			        + (b2 ? b2->shape->getClassName() : "?")
+			        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere and Facet–Sphere (see yadecd.engines()).");
+		}
+		if (!I->isReal()) continue;
+		auto* phys = dynamic_cast<CDPhys*>(I->phys.get());
+		auto* geom = dynamic_cast<ScGeom*>(I->geom.get());
+		if (!phys || !geom)
+			throw std::invalid_argument(
+			        "interaction " + pairName(I->getId1(), I->getId2()) + " has " + I->geom->getClassName() + "/" + I->phys->getClassName()
+			        + ": ContactDynamicsIntegrator needs ScGeom and CDPhys (use Ip2_FrictMat_FrictMat_CDPhys and Law2_ScGeom_CDPhys_Coulomb).");
+		const Real mu = phys->tangensOfFrictionAngle;
+		if (!(mu >= 0) || !std::isfinite(mu))
+			throw std::invalid_argument(
+			        "contact " + pairName(I->getId1(), I->getId2()) + " has friction coefficient " + std::to_string(mu)
+			        + ": check the frictionAngle of both bodies' materials (must be in [0, pi/2)).");
+		if (!(phys->en >= 0 && phys->en <= 1) || !(phys->et >= -1 && phys->et <= 1))
+			throw std::invalid_argument("contact " + pairName(I->getId1(), I->getId2()) + " has restitution en, et outside [0,1], [-1,1].");
+		SolverContact c;
+		c.I      = I;
+		c.b1     = I->getId1();
+		c.b2     = I->getId2();
+		c.mu     = mu;
+		c.gapI   = -geom->penetrationDepth;
+		c.refR   = math::min(geom->refR1, geom->refR2);
+		c.status = phys->status;
+		c.P      = 0;
+		contacts.push_back(c);
+	}
+	std::sort(contacts.begin(), contacts.end(), [](const SolverContact& a, const SolverContact& b) {
+		return a.b1 < b.b1 || (a.b1 == b.b1 && a.b2 < b.b2);
+	});
+	nContacts = int(contacts.size());
+}
+
+// Stage 1 (paper §II.3): q_m = q_i + h/2 u_i, for every body (kinematic ones included).
+void ContactDynamicsIntegrator::predictPositions()
+{
+	const Real h = scene->dt;
+	for (const auto& b : *scene->bodies) {
+		if (!b) continue;
+		State& s = *b->state;
+		s.pos += 0.5 * h * s.vel;
+		rotate(s.ori, s.angVel, 0.5 * h);
+	}
+}
+
+// Stage 2: contact frames and gaps at q_m, from the same Ig2 functor that made the contact.
+void ContactDynamicsIntegrator::updateContactFrames()
+{
+	for (SolverContact& c : contacts) {
+		const auto& b1 = Body::byId(c.b1, scene);
+		const auto& b2 = Body::byId(c.b2, scene);
+		c.I->functorCache.geom->go(b1->shape, b2->shape, *b1->state, *b2->state, Vector3r::Zero(), /*force*/ false, c.I);
+		const ScGeom* g = static_cast<ScGeom*>(c.I->geom.get());
+		const Vector3r n  = g->normal;
+		const Vector3r t1 = orthogonalUnit(n);
+		c.frame.row(0)    = n;
+		c.frame.row(1)    = t1;
+		c.frame.row(2)    = n.cross(t1);
+		c.c1              = g->contactPoint - b1->state->pos;
+		c.c2              = g->contactPoint - b2->state->pos;
+		c.gapM            = -g->penetrationDepth;
+	}
+}
+
+// Stage 3: u_free = u_i + h M⁻¹ (F + m g), F from O.forces (user forces, GravityEngine...).
+// Gravity is applied on unblocked translational axes only, as NewtonIntegrator does.
+void ContactDynamicsIntegrator::computeFreeVelocities()
+{
+	const Real h = scene->dt;
+	for (const auto& b : *scene->bodies) {
+		if (!b || !bodies[b->id].dynamic) continue;
+		SolverBody&    sb = bodies[b->id];
+		const Vector3r F  = scene->forces.getForce(b->id);
+		const Vector3r T  = scene->forces.getTorque(b->id);
+		for (int k = 0; k < 3; ++k)
+			if (sb.invM[k] > 0) sb.v[k] += h * (F[k] * sb.invM[k] + gravity[k]);
+		sb.w += h * sb.invI * T;
+	}
+}
+
+// Stage 4a: per contact, W = F (K1 + K2) Fᵀ with K_b = diag(1/m_b) − [c_b]x I_b⁻¹ [c_b]x, the
+// start-of-step local velocity U_i, and the law's scaling A and offset s (see the header).
+void ContactDynamicsIntegrator::assembleLocalProblems()
+{
+	const Real h = scene->dt;
+	qNorm        = 0;
+	for (SolverContact& c : contacts) {
+		const SolverBody& b1 = bodies[c.b1];
+		const SolverBody& b2 = bodies[c.b2];
+		const Matrix3r    S1 = skew(c.c1), S2 = skew(c.c2);
+		const Matrix3r    K  = Matrix3r(b1.invM.asDiagonal()) - S1 * b1.invI * S1 + Matrix3r(b2.invM.asDiagonal()) - S2 * b2.invI * S2;
+		c.W                  = c.frame * K * c.frame.transpose();
+		if (!(c.W(0, 0) > 0))
+			throw std::invalid_argument("contact " + pairName(c.b1, c.b2) + " joins two bodies that cannot move: make one of them dynamic or remove the contact.");
+		c.rho = 1 / c.W(0, 0);
+		c.Ui  = c.frame * ((b2.vi + b2.wi.cross(c.c2)) - (b1.vi + b1.wi.cross(c.c1)));
+		auto* phys = static_cast<CDPhys*>(c.I->phys.get());
+		if (c.gapM > 0) { // open: the end-of-step gap g_m + h/2 U_N must stay ≥ 0
+			c.A = Vector3r::Ones();
+			c.s = Vector3r(2 * c.gapM / h, 0, 0);
+		} else { // closed: Moreau's restitution mean; a contact that landed last step uses its approach velocity
+			const Vector3r Ui = (phys->approachVelocity != Vector3r::Zero()) ? Vector3r(c.frame * phys->approachVelocity) : c.Ui;
+			c.A               = Vector3r(1 / (1 + phys->en), 1 / (1 + phys->et), 1 / (1 + phys->et));
+			c.s               = Vector3r(phys->en * Ui[0], phys->et * Ui[1], phys->et * Ui[2]);
+		}
+		c.Wlaw = c.A.asDiagonal() * c.W;
+		c.r    = c.frame * phys->impulse; // warm start, re-expressed in the new frame
+		const Vector3r q = c.A.cwiseProduct(localVelocity(c) + c.s);
+		qNorm += q.squaredNorm();
+	}
+	qNorm = math::sqrt(qNorm);
+}
+
+Vector3r ContactDynamicsIntegrator::localVelocity(const SolverContact& c) const
+{
+	const SolverBody& b1 = bodies[c.b1];
+	const SolverBody& b2 = bodies[c.b2];
+	return c.frame * ((b2.v + b2.w.cross(c.c2)) - (b1.v + b1.w.cross(c.c1)));
+}
+
+void ContactDynamicsIntegrator::applyImpulse(const SolverContact& c, const Vector3r& dr)
+{
+	const Vector3r P  = c.frame.transpose() * dr; // on body 2; −P on body 1
+	SolverBody&    b1 = bodies[c.b1];
+	SolverBody&    b2 = bodies[c.b2];
+	b2.v += b2.invM.cwiseProduct(P);
+	b2.w += b2.invI * c.c2.cross(P);
+	b1.v -= b1.invM.cwiseProduct(P);
+	b1.w -= b1.invI * c.c1.cross(P);
+}
+
+// Relative residual: sqrt(Σ|e_α|²)/‖q‖, e_α the natural-map residual in velocity units.
+Real ContactDynamicsIntegrator::computeResidual()
+{
+	Real sum = 0;
+	nSticking = nSliding = 0;
+	for (const SolverContact& c : contacts) {
+		const Vector3r Ulaw = c.A.cwiseProduct(localVelocity(c) + c.s);
+		// ρ for the law's own block: the law sees Ũ = A U, so scale as 1/Wlaw_NN
+		sum += cd::naturalMapResidual(c.r, Ulaw, c.mu, 1 / c.Wlaw(0, 0)).squaredNorm();
+		if (c.status == int(cd::ContactStatus::Sticking)) ++nSticking;
+		if (c.status == int(cd::ContactStatus::Sliding)) ++nSliding;
+	}
+	const Real scale = qNorm > 0 ? qNorm : Real(1);
+	return math::sqrt(sum) / scale;
+}
+
+// Stage 4b: nonlinear Gauss–Seidel over contacts. Each contact in turn: its local velocity
+// without its own impulse, b = U − W r; the exact local solve of Ũ = A(W r + b + s); the
+// impulse change applied to both bodies at once.
+void ContactDynamicsIntegrator::solveImpulses()
+{
+	for (SolverContact& c : contacts)
+		applyImpulse(c, c.r); // warm start
+	residualHistory.clear();
+	iterations = 0;
+	residual   = 0;
+	converged  = true;
+	if (contacts.empty()) {
+		nSticking = nSliding = nStatusChanges = 0;
+		return;
+	}
+	converged = false;
+	for (int it = 1; it <= maxIter; ++it) {
+		nStatusChanges = 0;
+		for (SolverContact& c : contacts) {
+			const Vector3r U = localVelocity(c);
+			const Vector3r b = c.A.cwiseProduct(U - c.W * c.r + c.s);
+			Vector3r       r = c.r;
+			const int      st = int(cd::solveLocal(c.Wlaw, b, c.mu, r));
+			if (st != c.status) ++nStatusChanges;
+			c.status = st;
+			applyImpulse(c, r - c.r);
+			c.r = r;
+		}
+		iterations = it;
+		if (it % checkEvery == 0 || it == maxIter) {
+			residual = computeResidual();
+			if (recordResidual) residualHistory.push_back(residual);
+			if (residual <= tolerance) {
+				converged = true;
+				break;
+			}
+		}
+	}
+	if (!converged) {
+		++nUnconverged;
+		if (warnUnconverged)
+			LOG_WARN(
+			        "iter " << scene->iter << ": Gauss–Seidel stopped after maxIter=" << maxIter << " sweeps with residual " << residual
+			                << " > tolerance=" << tolerance << " (" << contacts.size() << " contacts). Counted in nUnconverged.");
+	}
+}
+
+Vector3r ContactDynamicsIntegrator::localPseudoVelocity(const SolverContact& c) const
+{
+	const SolverBody& b1 = bodies[c.b1];
+	const SolverBody& b2 = bodies[c.b2];
+	return c.frame * ((b2.pv + b2.pw.cross(c.c2)) - (b1.pv + b1.pw.cross(c.c1)));
+}
+
+void ContactDynamicsIntegrator::applyPseudoImpulse(const SolverContact& c, Real dP)
+{
+	const Vector3r P  = c.frame.row(0).transpose() * dP;
+	SolverBody&    b1 = bodies[c.b1];
+	SolverBody&    b2 = bodies[c.b2];
+	b2.pv += b2.invM.cwiseProduct(P);
+	b2.pw += b2.invI * c.c2.cross(P);
+	b1.pv -= b1.invM.cwiseProduct(P);
+	b1.pw -= b1.invI * c.c1.cross(P);
+}
+
+// Stage 5: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
+// normal pseudo-impulses P ≥ 0 that move positions but never velocities. Target: no contact
+// ends the step with more overlap than it started with, g_f ≥ min(g_i, 0). Overlaps present
+// at the start (e.g. from packing generation) are kept, not pushed apart, so that a packing at
+// rest stays exactly at rest; only the overlap this step created (by the half-step predictor
+// after a landing) is removed. Projected Gauss–Seidel, frictionless.
+void ContactDynamicsIntegrator::correctPositions()
+{
+	const Real h          = scene->dt;
+	projectionIterations  = 0;
+	maxCorrectedOverlap   = 0;
+	auto violation = [&](const SolverContact& c) {
+		const Real gf = c.gapM + 0.5 * h * (localVelocity(c)[0] + localPseudoVelocity(c)[0]);
+		return (math::min(c.gapI, Real(0)) - gf) / c.refR; // > 0: overlap created by this step
+	};
+	for (const SolverContact& c : contacts)
+		maxCorrectedOverlap = math::max(maxCorrectedOverlap, violation(c));
+	if (maxCorrectedOverlap <= positionTolerance) return;
+	for (int it = 1; it <= maxProjectionIter; ++it) {
+		Real worst = 0;
+		for (SolverContact& c : contacts) {
+			const Real v    = violation(c);
+			worst           = math::max(worst, v);
+			const Real Pnew = math::max(Real(0), c.P + (2 / h) * v * c.refR / c.W(0, 0));
+			applyPseudoImpulse(c, Pnew - c.P);
+			c.P = Pnew;
+		}
+		projectionIterations = it;
+		if (worst <= positionTolerance) break;
+	}
+}
+
+// Stage 6: q_f = q_m + h/2 (u_f + ũ), with u_f written to the bodies. Kinematic bodies and
+// blocked DOFs keep their imposed velocity. NaNs are caught here, before anything is stored.
+void ContactDynamicsIntegrator::updatePositions()
+{
+	const Real h = scene->dt;
+	for (const auto& b : *scene->bodies) {
+		if (!b) continue;
+		const SolverBody& sb = bodies[b->id];
+		if (!finite(sb.v) || !finite(sb.w) || !finite(sb.pv) || !finite(sb.pw))
+			throw std::runtime_error("iter " + std::to_string(scene->iter) + ": body #" + std::to_string(b->id) + " got a NaN velocity in the Contact Dynamics step.");
+	}
+	for (const auto& b : *scene->bodies) {
+		if (!b) continue;
+		const SolverBody& sb = bodies[b->id];
+		State&            s  = *b->state;
+		if (sb.dynamic) {
+			s.vel    = sb.v;
+			s.angVel = sb.w;
+		}
+		s.pos += 0.5 * h * (s.vel + sb.pv);
+		rotate(s.ori, s.angVel + sb.pw, 0.5 * h);
+	}
+}
+
+void ContactDynamicsIntegrator::restoreStartOfStep()
+{
+	for (const auto& b : *scene->bodies) {
+		if (!b || !bodies[b->id].active) continue;
+		b->state->pos    = bodies[b->id].qi;
+		b->state->ori    = bodies[b->id].oi;
+		b->state->vel    = bodies[b->id].vi;
+		b->state->angVel = bodies[b->id].wi;
+	}
+}
+
+// Stage 7: impulses (warm start) and forces into CDPhys, contact forces into O.forces, energy,
+// and the collider's hint (NewtonIntegrator::maxVelocitySq, as NewtonIntegrator sets it).
+void ContactDynamicsIntegrator::storeResults()
+{
+	const Real h = scene->dt;
+	for (const SolverContact& c : contacts) {
+		auto*          phys = static_cast<CDPhys*>(c.I->phys.get());
+		phys->impulse       = c.frame.transpose() * c.r;
+		phys->status        = c.status;
+		phys->normalForce   = c.frame.row(0).transpose() * (c.r[0] / h);
+		phys->shearForce    = (c.frame.row(1).transpose() * c.r[1] + c.frame.row(2).transpose() * c.r[2]) / h;
+		// a contact that landed keeps its approach velocity for the next step's restitution law
+		const bool landed      = c.gapM > 0 && c.r[0] > 0 && (phys->en > 0 || phys->et != 0);
+		phys->approachVelocity = landed ? Vector3r(c.frame.transpose() * c.Ui) : Vector3r::Zero();
+	}
+	if (scene->trackEnergy) trackEnergy(); // O.forces still holds only the external forces here
+	for (const SolverContact& c : contacts) {
+		const Vector3r P = c.frame.transpose() * c.r;
+		scene->forces.addForce(c.b2, P / h);
+		scene->forces.addTorque(c.b2, c.c2.cross(P) / h);
+		scene->forces.addForce(c.b1, -P / h);
+		scene->forces.addTorque(c.b1, -c.c1.cross(P) / h);
+	}
+	scene->forces.sync();
+
+	// collider hint: > 1 when some body left its bound's sweep distance
+	maxVelocitySq = 0;
+#ifdef YADE_OPENMP
+	std::fill(threadMaxVelocitySq.begin(), threadMaxVelocitySq.end(), Real(0));
+#endif
+	for (const auto& b : *scene->bodies)
+		if (b) saveMaximaDisplacement(b);
+#ifdef YADE_OPENMP
+	for (const Real& m : threadMaxVelocitySq)
+		maxVelocitySq = math::max(maxVelocitySq, m);
+#endif
+}
+
+} // namespace yade
+
+namespace yade {
+
+// Energy balance of the step, exact for the midpoint scheme: with ū = (u_i + u_f)/2,
+// ΔKE = ū·(h F_ext + h m g) + Σ_α r_α·Ū_α − Σ_kinematic ū_b·P_b, and q_f − q_i = h ū (+ the
+// pseudo-displacement of the position correction, booked as "positionCorrection").
+// Names follow YADE's: every term is minus a work, so O.energy.total() stays constant.
+void ContactDynamicsIntegrator::trackEnergy()
+{
+	const Real h             = scene->dt;
+	Real       contactDissip = 0, kinematicWork = 0;
+	for (const SolverContact& c : contacts) {
+		contactDissip -= c.r.dot(0.5 * (c.Ui + localVelocity(c)));
+		const Vector3r P = c.frame.transpose() * c.r;
+		for (int side = 0; side < 2; ++side) {
+			const SolverBody& sb = bodies[side ? c.b2 : c.b1];
+			if (sb.dynamic) continue;
+			const Vector3r Pb = side ? P : Vector3r(-P);
+			const Vector3r cb = side ? c.c2 : c.c1;
+			kinematicWork += Pb.dot(0.5 * (sb.vi + sb.v)) + cb.cross(Pb).dot(0.5 * (sb.wi + sb.w));
+		}
+	}
+	Real kinetic = 0, gravWork = 0, extWork = 0, posCorr = 0;
+	for (const auto& b : *scene->bodies) {
+		if (!b || !bodies[b->id].dynamic) continue;
+		const SolverBody& sb = bodies[b->id];
+		const State&      s  = *b->state;
+		const Matrix3r    R  = s.ori.toRotationMatrix();
+		kinetic += 0.5 * s.mass * s.vel.squaredNorm() + 0.5 * s.angVel.dot(R * s.inertia.asDiagonal() * R.transpose() * s.angVel);
+		Vector3r g = gravity;
+		for (int k = 0; k < 3; ++k)
+			if (sb.invM[k] == 0) g[k] = 0;
+		gravWork -= s.mass * g.dot(s.pos - sb.qi);
+		posCorr += s.mass * g.dot(0.5 * h * sb.pv);
+		extWork -= h * (scene->forces.getForce(b->id).dot(0.5 * (sb.vi + sb.v)) + scene->forces.getTorque(b->id).dot(0.5 * (sb.wi + sb.w)));
+	}
+	scene->energy->add(kinetic, "kinetic", kinEnergyIx, /*reset*/ true);
+	scene->energy->add(gravWork, "gravWork", fieldWorkIx, false);
+	scene->energy->add(contactDissip, "contactDissip", contactDissipIx, false);
+	if (extWork != 0) scene->energy->add(extWork, "externalWork", extWorkIx, false);
+	if (kinematicWork != 0) scene->energy->add(kinematicWork, "kinematicWork", kinematicWorkIx, false);
+	if (posCorr != 0) scene->energy->add(posCorr, "positionCorrection", posCorrIx, false);
+}
+
+} // namespace yade

@@ -1,0 +1,160 @@
+// Contact Dynamics plugin for YADE: Moreau's time-stepping integrator.
+//
+// Architecture
+// ------------
+// A CD scene is YADE's usual engine list with rigid-contact classes in place of the soft ones:
+//
+//   ForceResetter
+//   InsertionSortCollider([Bo1_Sphere_CDAabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()])
+//   InteractionLoop([Ig2_Sphere_Sphere_CDScGeom(), Ig2_Wall_Sphere_CDScGeom(), Ig2_Facet_Sphere_CDScGeom()],
+//                   [Ip2_FrictMat_FrictMat_CDPhys()], [Law2_ScGeom_CDPhys_Coulomb()])
+//   ContactDynamicsIntegrator(gravity=...)
+//
+// The InteractionLoop, at the positions q_i of the step start, creates a contact for every pair
+// closer than the alert distance and erases the far ones. This engine then runs Moreau's
+// midpoint step (paper §II.3), one private method per stage:
+//
+//   gatherContacts            copy every CDPhys contact into a flat array, sorted by (id1, id2),
+//                             with its start-of-step gap g_i and warm-start impulse
+//   predictPositions          q_m = q_i + h/2 u_i
+//   updateContactFrames       ScGeom recomputed at q_m by the contact's own Ig2 functor
+//   computeFreeVelocities     u_free = u_i + h M⁻¹ (F_ext + m g)
+//   assembleLocalProblems     local frame, Delassus block W_αα, law offsets per contact
+//   solveImpulses             nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone)
+//   correctPositions          split projection: removes only the overlap that the step created,
+//                             through pseudo-velocities that are never stored
+//   updatePositions           q_f = q_m + h/2 (u_f + ũ)
+//   storeResults              impulses (warm start), forces, O.forces, energy, collider hint
+//
+// Conventions: the local frame of a contact is (n, t1, t2), n from body 1 to body 2 (ScGeom's);
+// r is the impulse on body 2 [N·s], r_N ≥ 0 in compression; U is the velocity of body 2
+// relative to body 1 at the contact point, U_N > 0 when the gap opens.
+//
+// Contact law per contact α, with gap g_m at q_m:
+//   closed (g_m ≤ 0): Signorini–Coulomb on Ũ = (U_f + e U_i)/(1 + e) (Moreau's restitution mean,
+//                     e = en on the normal, et on the tangent);
+//   open   (g_m > 0): Signorini–Coulomb on Ũ = U_f + (2 g_m / h) e_N, i.e. the gap at the end of
+//                     the step, g_m + h/2 U_f,N, must stay ≥ 0 (the contact "lands" exactly).
+// A landed contact keeps a closing velocity; at the next step it is closed, its impulse stops
+// it, and correctPositions removes the overlap the half-step predictor made. So an inelastic
+// impact neither bounces back nor leaves a lasting overlap, wherever it falls in the step.
+//
+// ContactDynamicsIntegrator derives from NewtonIntegrator so that YADE's collider (stride /
+// Verlet mode), utils.unbalancedForce (gravity) and other utilities recognise it.
+#pragma once
+
+#include <lib/base/Math.hpp>
+#include <core/Interaction.hpp>
+#include <pkg/dem/NewtonIntegrator.hpp>
+
+namespace yade {
+
+class Scene;
+
+class ContactDynamicsIntegrator : public NewtonIntegrator {
+public:
+	/*! One body's unknowns, copied once per step (flat array indexed by body id). */
+	struct SolverBody {
+		Vector3r v, w;        // current velocity and angular velocity (u_free, then u_f)
+		Vector3r vi, wi;      // velocities at the start of the step (u_i)
+		Vector3r pv, pw;      // pseudo-velocities of the position correction (ũ)
+		Vector3r invM;        // inverse mass per global axis; 0 on blocked or kinematic axes
+		Matrix3r invI;        // inverse inertia (global frame); blocked rows/columns zero
+		Vector3r qi;          // position at the step start
+		Quaternionr oi;       // orientation at the step start
+		bool     active = false; // body exists and is handled by this engine
+		bool     dynamic = false;
+	};
+	/*! One contact of the step (flat array, sorted by (id1,id2)). */
+	struct SolverContact {
+		shared_ptr<Interaction> I;
+		int          b1, b2;  // body ids
+		Matrix3r     frame;   // rows n, t1, t2
+		Vector3r     c1, c2;  // contact point minus body centres, at q_m
+		Matrix3r     W;       // local Delassus block
+		Matrix3r     Wlaw;    // A·W, the block seen by the law
+		Vector3r     A;       // law scaling diag(1/(1+en), 1/(1+et), 1/(1+et))
+		Vector3r     s;       // law offset: e∘U_i (closed) or (2 g_m/h, 0, 0) (open)
+		Vector3r     r;       // impulse, local frame
+		Vector3r     Ui;      // U_i, local
+		Real         mu, gapI, gapM, rho, refR;
+		int          status;
+		Real         P;       // normal pseudo-impulse of the position correction
+	};
+
+	void action() override;
+	void postLoad(ContactDynamicsIntegrator&);
+
+	/*! Alert distance of a pair (see CDGeom.hpp); scene's CD engine supplies the parameters. */
+	static Real alertDistance(const Scene* scene, Real rmin, Real speedSum);
+	/*! Alert share of one sphere, used by Bo1_Sphere_CDAabb. */
+	static Real alertShare(const Scene* scene, Real radius, Real speed);
+	static const ContactDynamicsIntegrator* find(const Scene* scene);
+
+private:
+	std::vector<SolverBody>    bodies;
+	std::vector<SolverContact> contacts;
+	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
+
+	void checkScene();
+	void gatherContacts();
+	void predictPositions();
+	void updateContactFrames();
+	void computeFreeVelocities();
+	void assembleLocalProblems();
+	void solveImpulses();
+	void correctPositions();
+	void updatePositions();
+	void storeResults();
+	void trackEnergy();
+	void restoreStartOfStep();
+
+	Vector3r localVelocity(const SolverContact& c) const;
+	Vector3r localPseudoVelocity(const SolverContact& c) const;
+	void     applyImpulse(const SolverContact& c, const Vector3r& dr);
+	void     applyPseudoImpulse(const SolverContact& c, Real dP);
+	Real     computeResidual();
+
+public:
+	// clang-format off
+	YADE_CLASS_BASE_DOC_ATTRS_CTOR_PY(ContactDynamicsIntegrator, NewtonIntegrator,
+		"Moreau's Contact Dynamics (non-smooth, rigid-contact) time integrator [Moreau1988]_, replacing :yref:`NewtonIntegrator` in a CD scene. Each step: q_m = q_i + h/2·u_i; contact frames at q_m; an implicit velocity step in which all contact impulses are solved together by nonlinear Gauss–Seidel with the exact Signorini–Coulomb law (unilateral contact, Coulomb cone, Moreau's restitution mean); q_f = q_m + h/2·u_f. Contacts come from :yref:`Law2_ScGeom_CDPhys_Coulomb` / :yref:`CDPhys`. Gravity comes from :yref:`gravity<NewtonIntegrator.gravity>`; other forces in ``O.forces`` (``addF``, ``setPermF``, :yref:`GravityEngine`) enter the free velocity too. Fixed bodies and :yref:`blockedDOFs<State.blockedDOFs>` keep their velocity (moving walls are time-dependent obstacles). Results: contact forces in :yref:`CDPhys`, per-body totals in ``O.forces`` (gravity excluded, as with NewtonIntegrator), energies with ``O.trackEnergy``. Unsupported: periodic cells, clumps; :yref:`damping<NewtonIntegrator.damping>` must stay 0. See the plugin's ``docs/method.md``.",
+		((Real, tolerance, 1e-6, Attr::triggerPostLoad, "Convergence threshold of the Gauss–Seidel solve on the relative natural-map residual :yref:`residual<ContactDynamicsIntegrator.residual>` [-]."))
+		((int, maxIter, 1000, Attr::triggerPostLoad, "Maximum number of Gauss–Seidel sweeps per step. A step that stops here unconverged warns and counts in :yref:`nUnconverged<ContactDynamicsIntegrator.nUnconverged>`."))
+		((int, checkEvery, 1, Attr::triggerPostLoad, "Compute the residual every this many sweeps (a residual pass costs about one sweep)."))
+		((Real, alertRatio, 0.05, Attr::triggerPostLoad, "Alert distance, static part, relative to the smaller radius of a pair [-]. A pair becomes a contact when its gap is below alertRatio·min(r1,r2) + alertSpeedFactor·dt·(|v1|+|v2|)."))
+		((Real, alertSpeedFactor, 2.0, Attr::triggerPostLoad, "Alert distance, speed part: how many steps' worth of travel at the current speed a pair is watched ahead [-]. Must be ≥ 1 so that no contact closing within a step is missed (no tunnelling)."))
+		((Real, positionTolerance, 1e-9, Attr::triggerPostLoad, "Position correction: overlap created by the step and left after correction, relative to the contact's reference radius [-]."))
+		((int, maxProjectionIter, 200, Attr::triggerPostLoad, "Maximum sweeps of the position correction."))
+		((bool, warnUnconverged, true, , "Log a warning for every step whose solve did not converge."))
+		((bool, recordResidual, false, , "Record the residual after each checked sweep in :yref:`residualHistory<ContactDynamicsIntegrator.residualHistory>` (last step only)."))
+		((int, iterations, 0, Attr::readonly, "Gauss–Seidel sweeps done in the last step. |yupdate|"))
+		((Real, residual, 0, Attr::readonly, "Relative residual reached in the last step: sqrt(Σ_α |e_α|²)/‖q‖ with e_α the natural-map residual of contact α in velocity units (ρ_α = 1/W_NN,α) and ‖q‖ the norm of all contacts' free local velocities (law offsets included). 0 without contacts. |yupdate|"))
+		((bool, converged, true, Attr::readonly, "Whether the last step's solve met :yref:`tolerance<ContactDynamicsIntegrator.tolerance>`. |yupdate|"))
+		((long, nUnconverged, 0, , "Number of steps whose solve did not converge (cumulative; may be reset). |yupdate|"))
+		((int, nContacts, 0, Attr::readonly, "Contacts (real CD interactions, gaps within the alert distance included) in the last step. |yupdate|"))
+		((int, nSticking, 0, Attr::readonly, "Contacts sticking after the last solve. |yupdate|"))
+		((int, nSliding, 0, Attr::readonly, "Contacts sliding after the last solve. |yupdate|"))
+		((int, nStatusChanges, 0, Attr::readonly, "Contacts whose status changed during the last sweep of the last step. |yupdate|"))
+		((int, projectionIterations, 0, Attr::readonly, "Sweeps of the position correction in the last step (0: nothing to correct). |yupdate|"))
+		((Real, maxCorrectedOverlap, 0, Attr::readonly, "Largest overlap the last step created before correction, relative to the reference radius [-]. |yupdate|"))
+		((vector<Real>, residualHistory, , Attr::readonly, "Residual after each checked sweep of the last step, if :yref:`recordResidual<ContactDynamicsIntegrator.recordResidual>`. |yupdate|"))
+		((int, contactDissipIx, -1, (Attr::hidden | Attr::noSave), "Energy index: contact dissipation."))
+		((int, extWorkIx, -1, (Attr::hidden | Attr::noSave), "Energy index: work of O.forces."))
+		((int, kinematicWorkIx, -1, (Attr::hidden | Attr::noSave), "Energy index: work on kinematic bodies."))
+		((int, posCorrIx, -1, (Attr::hidden | Attr::noSave), "Energy index: position correction."))
+		,
+		/* ctor */ damping = 0;
+		,
+		/* py */
+		.def("solveLocal", &ContactDynamicsIntegrator::pySolveLocal, (boost::python::arg("W"), boost::python::arg("b"), boost::python::arg("mu")), "Solve one local Signorini–Coulomb problem U = W r + b exactly; return (r, status) with status 0 open, 1 sticking, 2 sliding. Exposed for tests and cross-checks.").staticmethod("solveLocal")
+		.def("naturalMapResidual", &ContactDynamicsIntegrator::pyResidual, (boost::python::arg("r"), boost::python::arg("U"), boost::python::arg("mu"), boost::python::arg("rho") = 1.0), "Natural-map residual vector of one contact, (r − P_C(r − ρ Û))/ρ with Û = U + μ|U_T| e_N.").staticmethod("naturalMapResidual")
+	);
+	// clang-format on
+	static boost::python::tuple pySolveLocal(const Matrix3r& W, const Vector3r& b, Real mu);
+	static Vector3r             pyResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho);
+	DECLARE_LOGGER;
+};
+REGISTER_SERIALIZABLE(ContactDynamicsIntegrator);
+
+} // namespace yade

@@ -1,0 +1,154 @@
+"""Scenes defined once, used by the tests, the benchmarks and the scripts alike.
+
+Every builder resets ``O``, creates the bodies, sets ``O.engines`` and ``O.dt`` and returns a
+small dict of what the caller needs (ids, parameters). Units are SI.
+"""
+import math
+
+from yade import O, utils
+from yade import Vector3
+from yade.wrapper import FrictMat
+
+from . import engines
+
+__all__ = ['material', 'sphere_on_plane', 'column', 'tetrahedron', 'binary_collision',
+           'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing']
+
+
+def material(mu, density=1000.0, label=None):
+    """A FrictMat with friction coefficient ``mu`` (frictionAngle = atan(mu)) and ``density``
+    [kg/m³]; Young's modulus is irrelevant to CD and left at YADE's default."""
+    m = FrictMat(frictionAngle=math.atan(mu), density=density)
+    if label:
+        m.label = label
+    return O.materials.append(m)
+
+
+def sphere_on_plane(theta, mu, r=0.01, dt=1e-4, density=1000.0):
+    """A sphere resting on the horizontal wall z=0 under gravity tilted by ``theta`` in the x–z
+    plane: the same as a horizontal-gravity-free sphere on a plane inclined at ``theta``.
+    Returns ``{'sphere': id, 'g': 9.81}``."""
+    O.reset()
+    g = 9.81
+    mat = material(mu, density)
+    floor = O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    s = O.bodies.append(utils.sphere((0, 0, r), r, material=mat))
+    O.engines = engines(gravity=(g * math.sin(theta), 0, -g * math.cos(theta)), tolerance=1e-12)
+    O.dt = dt
+    return {'sphere': s, 'floor': floor, 'g': g, 'r': r}
+
+
+def column(n, r=0.01, mu=0.3, dt=1e-4, gap=0.0, density=1000.0, **opts):
+    """``n`` equal spheres stacked on the wall z=0, touching (or ``gap`` apart), at rest.
+    Returns ``{'ids': [...], 'm': mass}`` (ids bottom to top)."""
+    O.reset()
+    mat = material(mu, density)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    ids = [O.bodies.append(utils.sphere((0, 0, r + k * (2 * r + gap)), r, material=mat)) for k in range(n)]
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'ids': ids, 'm': O.bodies[ids[0]].state.mass, 'r': r}
+
+
+def tetrahedron(r=0.01, mu=0.5, dt=1e-4, **opts):
+    """Three touching spheres on the wall z=0 and a fourth resting on them (a tetrahedral
+    pyramid). Returns ``{'base': [...], 'top': id, 'm': mass}``."""
+    O.reset()
+    mat = material(mu)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    d = 2 * r
+    base = []
+    for k in range(3):
+        a = 2 * math.pi * k / 3
+        rho = d / math.sqrt(3)  # circumradius of the equilateral triangle of side 2r
+        base.append(O.bodies.append(utils.sphere((rho * math.cos(a), rho * math.sin(a), r), r, material=mat)))
+    top = O.bodies.append(utils.sphere((0, 0, r + d * math.sqrt(2 / 3)), r, material=mat))
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'base': base, 'top': top, 'm': O.bodies[top].state.mass}
+
+
+def binary_collision(v1, v2, r1=0.01, r2=0.015, rho1=1000.0, rho2=3000.0, offset=0.0, mu=0.5,
+                     en=0.0, et=0.0, dt=1e-5, gap=0.0):
+    """Two free spheres (no gravity) whose contact normal is x, body 1 on the left, touching
+    (``gap`` = 0) or ``gap`` apart; ``offset`` shifts sphere 2 along y (the normal is then
+    still set by the centres). Velocities ``v1``, ``v2`` are 3-vectors."""
+    O.reset()
+    m1, m2 = material(mu, rho1), material(mu, rho2)
+    b1 = O.bodies.append(utils.sphere((0, 0, 0), r1, material=m1))
+    dist = r1 + r2 + gap
+    b2 = O.bodies.append(utils.sphere((math.sqrt(dist ** 2 - offset ** 2), offset, 0), r2, material=m2))
+    O.bodies[b1].state.vel = Vector3(*v1)
+    O.bodies[b2].state.vel = Vector3(*v2)
+    O.engines = engines(gravity=(0, 0, 0), en=en, et=et, tolerance=1e-13)
+    O.dt = dt
+    return {'ids': (b1, b2)}
+
+
+def projectile(speed, r=0.01, dt=1e-3, start_gap=0.35, gravity=0.0):
+    """A sphere flying at ``speed`` along −z towards the wall z=0, starting ``start_gap`` above
+    it; with ``speed·dt > r`` it would cross the wall in one step without near-contact
+    detection."""
+    O.reset()
+    mat = material(0.3)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    s = O.bodies.append(utils.sphere((0, 0, r + start_gap), r, material=mat))
+    O.bodies[s].state.vel = Vector3(0, 0, -speed)
+    O.engines = engines(gravity=(0, 0, -gravity))
+    O.dt = dt
+    return {'sphere': s, 'r': r}
+
+
+def point_on_sphere(R=1.0, r=1e-3, v0=0.2, dt=1e-4):
+    """Moreau's §II example: a point-like particle (a sphere of radius r ≪ R) on the outside of a
+    fixed frictionless sphere of radius R, starting at the top with horizontal speed ``v0``.
+    It follows the wall and leaves it where cos θ = (2 + v0²/(g(R+r)))/3."""
+    O.reset()
+    mat = material(0.0)
+    big = O.bodies.append(utils.sphere((0, 0, 0), R, fixed=True, material=mat))
+    p = O.bodies.append(utils.sphere((0, 0, R + r), r, material=mat))
+    O.bodies[p].state.vel = Vector3(v0, 0, 0)
+    O.engines = engines(gravity=(0, 0, -9.81), tolerance=1e-12)
+    O.dt = dt
+    return {'wall': big, 'point': p, 'R': R, 'r': r, 'g': 9.81}
+
+
+def mass_ratio_stack(ratio, r=0.01, dt=1e-4, **opts):
+    """A light sphere on the wall z=0 and a sphere ``ratio`` times heavier on top of it."""
+    O.reset()
+    light = material(0.3, 1000.0)
+    heavy = material(0.3, 1000.0 * ratio)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=light))
+    lo = O.bodies.append(utils.sphere((0, 0, r), r, material=light))
+    hi = O.bodies.append(utils.sphere((0, 0, 3 * r), r, material=heavy))
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'light': lo, 'heavy': hi}
+
+
+def random_loose_packing(n=30, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, **opts):
+    """``n`` spheres (radii in [0.8r, 1.2r]) dropped from random non-overlapping positions into a
+    box of side ``box`` with walls x, y = 0, box and floor z=0."""
+    import random
+    O.reset()
+    rnd = random.Random(seed)
+    mat = material(mu)
+    for ax in (0, 1):
+        O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
+        O.bodies.append(utils.wall(box, axis=ax, sense=-1, material=mat))
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    placed = []
+    z = 1.3 * r
+    while len(placed) < n:
+        rad = r * rnd.uniform(0.8, 1.2)
+        for _ in range(200):
+            p = (rnd.uniform(rad, box - rad), rnd.uniform(rad, box - rad), z + rnd.uniform(0, 4 * r))
+            if all((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2 > (rad + s + 1e-4) ** 2 for q, s in placed):
+                placed.append((p, rad))
+                break
+        else:
+            z += 2 * r
+    ids = [O.bodies.append(utils.sphere(p, s, material=mat)) for p, s in placed]
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'ids': ids}

@@ -1,0 +1,13 @@
+"""Test runner executed inside YADE (``yade -n -x tests/run_tests.py [-k pattern]``)."""
+import os
+import sys
+import unittest
+
+here = os.path.dirname(os.path.abspath(__file__))
+args = sys.argv[1:]
+loader = unittest.TestLoader()
+if len(args) >= 2 and args[0] == '-k':
+    loader.testNamePatterns = ['*%s*' % args[1]]
+suite = loader.discover(here, pattern='test_*.py', top_level_dir=here)
+result = unittest.TextTestRunner(verbosity=2).run(suite)
+sys.exit(0 if result.wasSuccessful() else 1)

@@ -1,0 +1,109 @@
+"""Bad input: every case raises a clear Python exception naming the culprit, and leaves the
+scene as it was (a failed step moves nothing)."""
+import math
+import unittest
+
+from yade import O, utils
+from yade import Vector3, Matrix3
+from yade.wrapper import (ContactDynamicsIntegrator, Ip2_FrictMat_FrictMat_CDPhys,
+                          Bo1_Box_Aabb, PyRunner)
+
+import yadecd
+from yadecd import scenes
+
+
+def snapshot():
+    return [(tuple(b.state.pos), tuple(b.state.vel)) for b in O.bodies]
+
+
+class TestBadInput(unittest.TestCase):
+    def assertStepFails(self, exc, *words):
+        before, it = snapshot(), O.iter
+        with self.assertRaises(exc) as cm:
+            O.step()
+        for w in words:
+            self.assertIn(w, str(cm.exception))
+        self.assertEqual(snapshot(), before, 'a failed step must leave positions and velocities unchanged')
+        self.assertEqual(O.iter, it)
+        return cm.exception
+
+    def test_attributes(self):
+        for kw, word in ((dict(tolerance=-1), 'tolerance'), (dict(tolerance=float('nan')), 'tolerance'),
+                         (dict(maxIter=0), 'maxIter'), (dict(alertSpeedFactor=0.5), 'alertSpeedFactor'),
+                         (dict(alertRatio=float('nan')), 'alertRatio')):
+            with self.assertRaises(ValueError) as cm:
+                ContactDynamicsIntegrator(**kw)
+            self.assertIn(word, str(cm.exception))
+        cd = ContactDynamicsIntegrator()
+        with self.assertRaises(ValueError):
+            cd.tolerance = 0
+        for kw, word in ((dict(en=-0.1), 'en'), (dict(en=float('nan')), 'en'), (dict(en=1.5), 'en'), (dict(et=2), 'et')):
+            with self.assertRaises(ValueError) as cm:
+                Ip2_FrictMat_FrictMat_CDPhys(**kw)
+            self.assertIn(word, str(cm.exception))
+
+    def test_time_step(self):
+        scenes.column(2)
+        for dt in (-1e-4, float('nan')):
+            O.dt = dt
+            self.assertStepFails(ValueError, 'O.dt')
+
+    def test_friction(self):
+        for angle in (-0.1, float('nan')):
+            sc = scenes.column(2)
+            O.materials[0].frictionAngle = angle
+            self.assertStepFails(ValueError, 'friction', '#0', '#%d' % sc['ids'][0])
+
+    def test_mass_and_inertia(self):
+        sc = scenes.column(2)
+        O.bodies[sc['ids'][1]].state.mass = 0
+        self.assertStepFails(ValueError, 'mass', '#%d' % sc['ids'][1])
+        sc = scenes.column(2)
+        O.bodies[sc['ids'][1]].state.inertia = Vector3(1, -1, 1)
+        self.assertStepFails(ValueError, 'inertia', '#%d' % sc['ids'][1])
+
+    def test_unsupported_shape_pair(self):
+        scenes.column(1)
+        O.engines[1].boundDispatcher.functors = O.engines[1].boundDispatcher.functors + [Bo1_Box_Aabb()]
+        b = O.bodies.append(utils.box((0, 0, 0.03), (0.01, 0.01, 0.01)))
+        self.assertStepFails(ValueError, 'Box', 'Sphere', '#%d' % b)
+
+    def test_periodic(self):
+        scenes.column(1)
+        O.periodic = True
+        O.cell.hSize = Matrix3(1, 0, 0, 0, 1, 0, 0, 0, 1)
+        with self.assertRaises((ValueError, RuntimeError)) as cm:
+            O.step()
+        self.assertIn('periodic', str(cm.exception))
+
+    def test_nan_state(self):
+        sc = scenes.column(2)
+        O.bodies[sc['ids'][1]].state.vel = Vector3(float('nan'), 0, 0)
+        self.assertStepFails(ValueError, 'NaN', '#%d' % sc['ids'][1])
+
+    def test_nan_appearing_in_step(self):
+        """A NaN force added during the step (by a PyRunner) is caught before anything moves."""
+        sc = scenes.column(2)
+        bad = sc['ids'][0]
+        O.engines = O.engines[:-1] + [PyRunner(command='O.forces.addF(%d, Vector3(float("nan"),0,0))' % bad, iterPeriod=1)] + O.engines[-1:]
+        self.assertStepFails(RuntimeError, 'NaN', '#%d' % bad)
+
+    def test_damping(self):
+        scenes.column(1)
+        yadecd.integrator().damping = 0.2
+        self.assertStepFails(ValueError, 'damping')
+
+    def test_recovers_after_fix(self):
+        """After an error is fixed the simulation continues normally."""
+        sc = scenes.column(2)
+        O.dt = -1
+        with self.assertRaises(ValueError):
+            O.step()
+        O.dt = 1e-4
+        O.run(10, True)
+        self.assertEqual(O.iter, 10)
+        self.assertAlmostEqual(O.bodies[sc['ids'][0]].state.pos[2], 0.01, delta=1e-14)
+
+
+if __name__ == '__main__':
+    unittest.main()
