@@ -3,7 +3,8 @@ import os
 import sys
 import unittest
 
-here = os.path.dirname(os.path.abspath(__file__))
+# inside yade, __file__ is yade's executable: take the script's path from argv
+here = os.path.dirname(os.path.abspath(sys.argv[0]))
 args = sys.argv[1:]
 loader = unittest.TestLoader()
 if len(args) >= 2 and args[0] == '-k':

@@ -67,7 +67,17 @@ bool Ig2_Wall_Sphere_CDScGeom::go(
 		const Real alert = ContactDynamicsIntegrator::alertDistance(scene, r, s1.vel.norm() + s2.vel.norm());
 		if (gap > alert) return false;
 	}
-	return Ig2_Wall_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, /*force*/ true, c);
+	Ig2_Wall_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, /*force*/ true, c);
+	// YADE measures the gap with |distance|, which mirrors a sphere whose centre has crossed a
+	// one-sided wall (sense = ±1); CD's half-step predictor can put it there. Use the signed one.
+	const Wall* w = static_cast<Wall*>(cm1.get());
+	if (w->sense != 0) {
+		const Real r    = static_cast<Sphere*>(cm2.get())->radius;
+		const Real dist = (s2.pos[w->axis] + shift2[w->axis] - s1.pos[w->axis]) * w->sense;
+		ScGeom*    g    = static_cast<ScGeom*>(c->geom.get());
+		g->penetrationDepth = r - dist;
+	}
+	return true;
 }
 
 bool Ig2_Facet_Sphere_CDScGeom::go(

@@ -23,6 +23,7 @@ public:
 		((Real, et, 0, , "Tangential restitution coefficient [-], in [-1,1] (0: no tangential restitution); applied as en is, to the tangential velocity."))
 		((Vector3r, impulse, Vector3r::Zero(), Attr::readonly, "Contact impulse on body 2 over the last step, in global coordinates [N·s]. It warm-starts the next step's solve. |yupdate|"))
 		((int, status, 0, Attr::readonly, "Contact status after the last solve: 0 open (no impulse), 1 sticking, 2 sliding. |yupdate|"))
+		((Real, overlapAllowance, NaN, Attr::readonly, "Overlap this contact may keep [m]: the overlap it was created with (e.g. by packing generation), shrinking whenever the overlap does; NaN until its first step. The position correction of :yref:`ContactDynamicsIntegrator` removes any overlap beyond it. |yupdate|"))
 		((Vector3r, approachVelocity, Vector3r::Zero(), Attr::readonly, "For a contact that closed within the last step (landing), the relative velocity (global coordinates) it had at the start of that step [m/s]; used as the initial velocity of the restitution law at the next step. Zero otherwise. |yupdate|"))
 		,
 		createIndex();

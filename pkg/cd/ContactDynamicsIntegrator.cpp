@@ -206,6 +206,9 @@ void ContactDynamicsIntegrator::gatherContacts()
 		c.gapI   = -geom->penetrationDepth;
 		c.refR   = math::min(geom->refR1, geom->refR2);
 		c.status = phys->status;
+		// overlap the contact may keep: what it was born with, shrinking with the overlap
+		const Real overlap = math::max(Real(0), geom->penetrationDepth);
+		c.allowance        = std::isnan(phys->overlapAllowance) ? overlap : math::min(phys->overlapAllowance, overlap);
 		c.P      = 0;
 		contacts.push_back(c);
 	}
@@ -233,16 +236,32 @@ void ContactDynamicsIntegrator::updateContactFrames()
 	for (SolverContact& c : contacts) {
 		const auto& b1 = Body::byId(c.b1, scene);
 		const auto& b2 = Body::byId(c.b2, scene);
+		ScGeom*        g  = static_cast<ScGeom*>(c.I->geom.get());
+		const Vector3r ni = g->normal, Ci = g->contactPoint; // at q_i
 		c.I->functorCache.geom->go(b1->shape, b2->shape, *b1->state, *b2->state, Vector3r::Zero(), /*force*/ false, c.I);
-		const ScGeom* g = static_cast<ScGeom*>(c.I->geom.get());
-		const Vector3r n  = g->normal;
+		Vector3r n = g->normal;
+		c.c1       = g->contactPoint - b1->state->pos;
+		c.c2       = g->contactPoint - b2->state->pos;
+		c.gapM     = -g->penetrationDepth;
+		// A grain fast enough to move more than its radius in half a step can put its centre
+		// past an obstacle's centre or plane at q_m; the geometry there is then meaningless (a
+		// flipped normal). Keep the q_i frame and predict the gap linearly instead.
+		if (n.dot(ni) < 0.5 || -c.gapM > c.refR) {
+			const SolverBody &s1 = bodies[c.b1], &s2 = bodies[c.b2];
+			const Vector3r    c1 = Ci - s1.qi, c2 = Ci - s2.qi;
+			const Real        UiN = ni.dot((s2.vi + s2.wi.cross(c2)) - (s1.vi + s1.wi.cross(c1)));
+			n                     = ni;
+			c.c1                  = c1;
+			c.c2                  = c2;
+			c.gapM                = c.gapI + 0.5 * scene->dt * UiN;
+			g->normal             = ni;
+			g->contactPoint       = Ci + 0.5 * scene->dt * 0.5 * (s1.vi + s2.vi);
+			g->penetrationDepth   = -c.gapM;
+		}
 		const Vector3r t1 = orthogonalUnit(n);
 		c.frame.row(0)    = n;
 		c.frame.row(1)    = t1;
 		c.frame.row(2)    = n.cross(t1);
-		c.c1              = g->contactPoint - b1->state->pos;
-		c.c2              = g->contactPoint - b2->state->pos;
-		c.gapM            = -g->penetrationDepth;
 	}
 }
 
@@ -395,11 +414,12 @@ void ContactDynamicsIntegrator::applyPseudoImpulse(const SolverContact& c, Real 
 }
 
 // Stage 5: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
-// normal pseudo-impulses P ≥ 0 that move positions but never velocities. Target: no contact
-// ends the step with more overlap than it started with, g_f ≥ min(g_i, 0). Overlaps present
-// at the start (e.g. from packing generation) are kept, not pushed apart, so that a packing at
-// rest stays exactly at rest; only the overlap this step created (by the half-step predictor
-// after a landing) is removed. Projected Gauss–Seidel, frictionless.
+// normal pseudo-impulses P ≥ 0 that move positions but never velocities. Target: g_f ≥ −a,
+// with a the contact's overlap allowance (CDPhys.overlapAllowance: the overlap it was created
+// with, e.g. by packing generation, shrinking with the overlap). Such overlaps are kept, not
+// pushed apart, so a packing at rest stays exactly at rest; the overlap that steps create (by
+// the half-step predictor after a landing, or by an unconverged solve) is removed, over several
+// steps if the correction itself stops at maxProjectionIter. Projected Gauss–Seidel, frictionless.
 void ContactDynamicsIntegrator::correctPositions()
 {
 	const Real h          = scene->dt;
@@ -407,7 +427,7 @@ void ContactDynamicsIntegrator::correctPositions()
 	maxCorrectedOverlap   = 0;
 	auto violation = [&](const SolverContact& c) {
 		const Real gf = c.gapM + 0.5 * h * (localVelocity(c)[0] + localPseudoVelocity(c)[0]);
-		return (math::min(c.gapI, Real(0)) - gf) / c.refR; // > 0: overlap created by this step
+		return (-c.allowance - gf) / c.refR; // > 0: overlap beyond the allowance
 	};
 	for (const SolverContact& c : contacts)
 		maxCorrectedOverlap = math::max(maxCorrectedOverlap, violation(c));
@@ -470,6 +490,7 @@ void ContactDynamicsIntegrator::storeResults()
 		auto*          phys = static_cast<CDPhys*>(c.I->phys.get());
 		phys->impulse       = c.frame.transpose() * c.r;
 		phys->status        = c.status;
+		phys->overlapAllowance = c.allowance;
 		phys->normalForce   = c.frame.row(0).transpose() * (c.r[0] / h);
 		phys->shearForce    = (c.frame.row(1).transpose() * c.r[1] + c.frame.row(2).transpose() * c.r[2]) / h;
 		// a contact that landed keeps its approach velocity for the next step's restitution law
