@@ -10,6 +10,11 @@ namespace yade {
 
 YADE_PLUGIN((Bo1_Sphere_CDAabb)(Ig2_Sphere_Sphere_CDScGeom)(Ig2_Wall_Sphere_CDScGeom)(Ig2_Facet_Sphere_CDScGeom));
 
+namespace {
+	// Two bodies that cannot move (fixed paving grains, walls) never exchange an impulse: no contact.
+	bool bothObstacles(const State& s1, const State& s2) { return s1.blockedDOFs == State::DOF_ALL && s2.blockedDOFs == State::DOF_ALL; }
+}
+
 void Bo1_Sphere_CDAabb::go(const shared_ptr<Shape>& cm, shared_ptr<Bound>& bv, const Se3r& se3, const Body* b)
 {
 	// (periodic cells are rejected by the integrator; never throw here, inside an OpenMP loop)
@@ -31,6 +36,7 @@ bool Ig2_Sphere_Sphere_CDScGeom::go(
         const shared_ptr<Interaction>& c)
 {
 	if (!c->isReal() && !force) {
+		if (bothObstacles(s1, s2)) return false;
 		const Real r1 = static_cast<Sphere*>(cm1.get())->radius, r2 = static_cast<Sphere*>(cm2.get())->radius;
 		const Real gap   = (s2.pos + shift2 - s1.pos).norm() - r1 - r2;
 		const Real alert = ContactDynamicsIntegrator::alertDistance(scene, math::min(r1, r2), s1.vel.norm() + s2.vel.norm());
@@ -61,6 +67,7 @@ bool Ig2_Wall_Sphere_CDScGeom::go(
         const shared_ptr<Interaction>& c)
 {
 	if (!c->isReal() && !force) {
+		if (bothObstacles(s1, s2)) return false;
 		const int  ax    = static_cast<Wall*>(cm1.get())->axis;
 		const Real r     = static_cast<Sphere*>(cm2.get())->radius;
 		const Real gap   = math::abs(s2.pos[ax] + shift2[ax] - s1.pos[ax]) - r;
@@ -90,6 +97,7 @@ bool Ig2_Facet_Sphere_CDScGeom::go(
         const shared_ptr<Interaction>& c)
 {
 	if (c->isReal() || force) return Ig2_Facet_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, force, c);
+	if (bothObstacles(s1, s2)) return false;
 	// YADE's facet functor creates geometry only on overlap. Ask it about a sphere inflated by
 	// the alert distance; if that one overlaps, the true gap is within the alert distance, and
 	// the geometry is rebuilt for the true radius (YADE's functor accepts any gap once the

@@ -95,21 +95,28 @@ Vector3r ContactDynamicsIntegrator::pyResidual(const Vector3r& r, const Vector3r
 
 void ContactDynamicsIntegrator::action()
 {
+	timingDeltas->start();
 	checkScene();
 	gatherContacts();
+	timingDeltas->checkpoint("gatherContacts");
 	predictPositions();
 	try {
 		updateContactFrames();
+		timingDeltas->checkpoint("updateContactFrames");
 		computeFreeVelocities();
 		assembleLocalProblems();
+		timingDeltas->checkpoint("assembleLocalProblems");
 		solveImpulses();
+		timingDeltas->checkpoint("solveImpulses");
 		correctPositions();
+		timingDeltas->checkpoint("correctPositions");
 		updatePositions();
 	} catch (...) {
 		restoreStartOfStep(); // a failed step leaves the scene as it found it
 		throw;
 	}
 	storeResults();
+	timingDeltas->checkpoint("storeResults");
 }
 
 // Bad input is reported before anything moves.
@@ -185,6 +192,7 @@ void ContactDynamicsIntegrator::gatherContacts()
 			        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere and Facet–Sphere (see yadecd.engines()).");
 		}
 		if (!I->isReal()) continue;
+		if (!bodies[I->getId1()].dynamic && !bodies[I->getId2()].dynamic) continue; // obstacles never exchange impulses
 		auto* phys = dynamic_cast<CDPhys*>(I->phys.get());
 		auto* geom = dynamic_cast<ScGeom*>(I->geom.get());
 		if (!phys || !geom)
@@ -308,8 +316,10 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 		}
 		c.Wlaw = c.A.asDiagonal() * c.W;
 		c.r    = c.frame * phys->impulse; // warm start, re-expressed in the new frame
+		// residual scale: free local velocities of the contacts that would close without an
+		// impulse (q_N < 0); far gap contacts, whose offsets 2 g_m/h are large, do not dilute it
 		const Vector3r q = c.A.cwiseProduct(localVelocity(c) + c.s);
-		qNorm += q.squaredNorm();
+		if (q[0] < 0) qNorm += q.squaredNorm();
 	}
 	qNorm = math::sqrt(qNorm);
 }
