@@ -1,0 +1,77 @@
+#!/usr/bin/env python3
+"""Figures and summary of a sand-pile run (Moreau, section IV).
+
+    python3 scripts/pile_figures.py RUN_DIR [--epoch T] [--fossil T1 T2]... [--out DIR]
+
+RUN_DIR holds snap_<time>.npz files (and run.json); a single snapshot file is accepted too.
+Writes fig0..fig7 PNGs and summary.json into DIR (default RUN_DIR/figures) and prints the main
+numbers. Needs numpy and matplotlib only: works with Debian's /usr/bin/python3 and inside YADE
+(``yade -n -x scripts/pile_figures.py RUN_DIR ...``); it never imports yade. The analysis modules
+are loaded from their files in the repository's py/yadecd/, so the yadecd package (whose
+__init__ needs YADE) is not imported.
+"""
+import argparse
+import importlib.util
+import os
+import sys
+
+
+def _repo_py_dir():
+    """py/yadecd of the repository this script belongs to (inside YADE ``__file__`` may be
+    YADE's executable, so sys.argv[0] is tried as well)."""
+    for candidate in (globals().get('__file__'), sys.argv[0] if sys.argv else None):
+        if not candidate:
+            continue
+        pkg = os.path.join(os.path.dirname(os.path.abspath(candidate)), '..', 'py', 'yadecd')
+        if os.path.exists(os.path.join(pkg, 'pile_figures.py')):
+            return os.path.normpath(pkg)
+    raise SystemExit('cannot find py/yadecd/pile_figures.py next to this script')
+
+
+def _load(name, path):
+    """Import a module from its file under ``name`` (once)."""
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def parse(argv):
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    p.add_argument('run', help='run directory (snap_<time>.npz files) or one snapshot file')
+    p.add_argument('--epoch', type=float, default=None, help='time [s] of the snapshot analysed (default: last)')
+    p.add_argument('--fossil', type=float, nargs=2, action='append', metavar=('T1', 'T2'),
+                   help='birth-time interval [s] of a fossil layer (repeatable; first one in Fig. 2)')
+    p.add_argument('--out', default=None, help='output directory (default RUN/figures)')
+    p.add_argument('--half-thickness', type=float, default=0.01, help='slice half thickness [m] (1 cm)')
+    p.add_argument('--ring-width', type=float, default=None, help='ground-pressure ring width [m]')
+    return p.parse_args(argv)
+
+
+def main(argv=None):
+    args = parse(sys.argv[1:] if argv is None else argv)
+    pkg = _repo_py_dir()
+    _load('_yadecd_pile_analysis', os.path.join(pkg, 'pile_analysis.py'))
+    figures = _load('_yadecd_pile_figures', os.path.join(pkg, 'pile_figures.py'))
+    base = args.run if os.path.isdir(args.run) else os.path.dirname(os.path.abspath(args.run))
+    out = args.out or os.path.join(base, 'figures')
+    s = figures.analyse(args.run, out, epoch=args.epoch, fossil=args.fossil,
+                        half_thickness=args.half_thickness, ring_width=args.ring_width)
+    fmt = lambda v, f='%.4g': 'n/a' if v is None else f % v
+    print('snapshot %s (t = %s s): %d grains, %d contacts' % (s['snapshot'], fmt(s['time_s']),
+                                                              s['n_grains'], s['n_contacts']))
+    print('slope %s ± %s deg (paper 26), H %s cm, base radius %s cm'
+          % (fmt(s['slope_deg'], '%.2f'), fmt(s['slope_err_deg'], '%.2f'), fmt(s['H_cm']), fmt(s['base_radius_cm'])))
+    print('floor pressure: centre %s dPa, peak %s dPa at r = %s cm, hydrostatic %s dPa'
+          % (fmt(s['p_center_dPa']), fmt(s['p_peak_dPa']), fmt(s['p_peak_radius_cm']), fmt(s['hydrostatic_dPa'])))
+    print('reciprocity: %d pairs, relative difference %s ± %s'
+          % (s['reciprocity']['n_pairs'], fmt(s['reciprocity']['rel_mean'], '%.3f'), fmt(s['reciprocity']['rel_std'], '%.3f')))
+    print('written: %s' % os.path.join(out, 'summary.json'))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
