@@ -53,13 +53,13 @@ namespace cd {
 	 *  have isotropic inertia and no blocked DOFs), U_T is parallel to b_T and the sliding
 	 *  branch is closed-form; otherwise the coupling terms are iterated to a fixed point
 	 *  (at most `maxInner` passes, relative change 1e-14). */
-	inline ContactStatus solveLocal(const Matrix3r& W, const Vector3r& b, Real mu, Vector3r& r, int maxInner = 50)
+	inline ContactStatus solveLocal(const Matrix3r& W, const Matrix3r& Winv, const Vector3r& b, Real mu, Vector3r& r, int maxInner = 50)
 	{
 		if (b[0] >= 0) {
 			r.setZero();
 			return ContactStatus::Open;
 		}
-		const Vector3r stick = -W.ldlt().solve(b);
+		const Vector3r stick = -(Winv * b);
 		if (stick[0] > 0 && stick[1] * stick[1] + stick[2] * stick[2] <= mu * mu * stick[0] * stick[0]) {
 			r = stick;
 			return ContactStatus::Sticking;
@@ -84,6 +84,9 @@ namespace cd {
 		r = Vector3r(rn, rt[0], rt[1]);
 		return rn > 0 ? ContactStatus::Sliding : ContactStatus::Open;
 	}
+
+	/*! Same, computing W⁻¹ itself (callers that solve the same W repeatedly pass it in). */
+	inline ContactStatus solveLocal(const Matrix3r& W, const Vector3r& b, Real mu, Vector3r& r) { return solveLocal(W, W.inverse(), b, mu, r); }
 
 } // namespace cd
 } // namespace yade

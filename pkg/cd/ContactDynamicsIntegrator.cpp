@@ -131,6 +131,7 @@ void ContactDynamicsIntegrator::checkScene()
 	scene->forces.sync();
 
 	bodies.assign(scene->bodies->size(), SolverBody());
+	records.assign(scene->bodies->size(), BodyRecord());
 	for (const auto& b : *scene->bodies) {
 		if (!b) continue;
 		const State& s = *b->state;
@@ -139,16 +140,17 @@ void ContactDynamicsIntegrator::checkScene()
 		if (!finite(s.pos) || !finite(s.vel) || !finite(s.angVel))
 			throw std::invalid_argument(who + " has a NaN or infinite position or velocity.");
 		SolverBody& sb = bodies[b->id];
-		sb.active      = true;
-		sb.dynamic     = b->isDynamic();
-		sb.vi = sb.v = s.vel;
-		sb.wi = sb.w = s.angVel;
-		sb.pv = sb.pw = Vector3r::Zero();
-		sb.qi         = s.pos;
-		sb.oi         = s.ori;
+		BodyRecord& br = records[b->id];
+		br.active      = true;
+		br.dynamic     = b->isDynamic();
+		br.vi = sb.v = s.vel;
+		br.wi = sb.w = s.angVel;
+		br.pv = br.pw = Vector3r::Zero();
+		br.qi         = s.pos;
+		br.oi         = s.ori;
 		sb.invM.setZero();
 		sb.invI.setZero();
-		if (!sb.dynamic) continue;
+		if (!br.dynamic) continue;
 		for (int k = 0; k < 3; ++k) {
 			if (!(s.blockedDOFs & State::axisDOF(k, false))) {
 				if (!(s.mass > 0) || !std::isfinite(s.mass)) throw std::invalid_argument(who + " is dynamic but has mass=" + std::to_string(s.mass) + " (must be > 0).");
@@ -192,7 +194,7 @@ void ContactDynamicsIntegrator::gatherContacts()
 			        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere and Facet–Sphere (see yadecd.engines()).");
 		}
 		if (!I->isReal()) continue;
-		if (!bodies[I->getId1()].dynamic && !bodies[I->getId2()].dynamic) continue; // obstacles never exchange impulses
+		if (!records[I->getId1()].dynamic && !records[I->getId2()].dynamic) continue; // obstacles never exchange impulses
 		auto* phys = dynamic_cast<CDPhys*>(I->phys.get());
 		auto* geom = dynamic_cast<ScGeom*>(I->geom.get());
 		if (!phys || !geom)
@@ -255,7 +257,7 @@ void ContactDynamicsIntegrator::updateContactFrames()
 		// past an obstacle's centre or plane at q_m; the geometry there is then meaningless (a
 		// flipped normal). Keep the q_i frame and predict the gap linearly instead.
 		if (n.dot(ni) < 0.5 || -c.gapM > c.refR) {
-			const SolverBody &s1 = bodies[c.b1], &s2 = bodies[c.b2];
+			const BodyRecord &s1 = records[c.b1], &s2 = records[c.b2];
 			const Vector3r    c1 = Ci - s1.qi, c2 = Ci - s2.qi;
 			const Real        UiN = ni.dot((s2.vi + s2.wi.cross(c2)) - (s1.vi + s1.wi.cross(c1)));
 			n                     = ni;
@@ -279,7 +281,7 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 {
 	const Real h = scene->dt;
 	for (const auto& b : *scene->bodies) {
-		if (!b || !bodies[b->id].dynamic) continue;
+		if (!b || !records[b->id].dynamic) continue;
 		SolverBody&    sb = bodies[b->id];
 		const Vector3r F  = scene->forces.getForce(b->id);
 		const Vector3r T  = scene->forces.getTorque(b->id);
@@ -298,13 +300,15 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 	for (SolverContact& c : contacts) {
 		const SolverBody& b1 = bodies[c.b1];
 		const SolverBody& b2 = bodies[c.b2];
+		const BodyRecord& r1 = records[c.b1];
+		const BodyRecord& r2 = records[c.b2];
 		const Matrix3r    S1 = skew(c.c1), S2 = skew(c.c2);
 		const Matrix3r    K  = Matrix3r(b1.invM.asDiagonal()) - S1 * b1.invI * S1 + Matrix3r(b2.invM.asDiagonal()) - S2 * b2.invI * S2;
 		c.W                  = c.frame * K * c.frame.transpose();
 		if (!(c.W(0, 0) > 0))
 			throw std::invalid_argument("contact " + pairName(c.b1, c.b2) + " joins two bodies that cannot move: make one of them dynamic or remove the contact.");
 		c.rho = 1 / c.W(0, 0);
-		c.Ui  = c.frame * ((b2.vi + b2.wi.cross(c.c2)) - (b1.vi + b1.wi.cross(c.c1)));
+		c.Ui  = c.frame * ((r2.vi + r2.wi.cross(c.c2)) - (r1.vi + r1.wi.cross(c.c1)));
 		auto* phys = static_cast<CDPhys*>(c.I->phys.get());
 		if (c.gapM > 0) { // open: the end-of-step gap g_m + h/2 U_N must stay ≥ 0
 			c.A = Vector3r::Ones();
@@ -314,7 +318,8 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 			c.A               = Vector3r(1 / (1 + phys->en), 1 / (1 + phys->et), 1 / (1 + phys->et));
 			c.s               = Vector3r(phys->en * Ui[0], phys->et * Ui[1], phys->et * Ui[2]);
 		}
-		c.Wlaw = c.A.asDiagonal() * c.W;
+		c.Wlaw    = c.A.asDiagonal() * c.W;
+		c.WlawInv = c.Wlaw.inverse();
 		c.r    = c.frame * phys->impulse; // warm start, re-expressed in the new frame
 		// residual scale: free local velocities of the contacts that would close without an
 		// impulse (q_N < 0); far gap contacts, whose offsets 2 g_m/h are large, do not dilute it
@@ -382,7 +387,7 @@ void ContactDynamicsIntegrator::solveImpulses()
 			const Vector3r U = localVelocity(c);
 			const Vector3r b = c.A.cwiseProduct(U - c.W * c.r + c.s);
 			Vector3r       r = c.r;
-			const int      st = int(cd::solveLocal(c.Wlaw, b, c.mu, r));
+			const int      st = int(cd::solveLocal(c.Wlaw, c.WlawInv, b, c.mu, r));
 			if (st != c.status) ++nStatusChanges;
 			c.status = st;
 			applyImpulse(c, r - c.r);
@@ -413,20 +418,20 @@ void ContactDynamicsIntegrator::solveImpulses()
 
 Vector3r ContactDynamicsIntegrator::localPseudoVelocity(const SolverContact& c) const
 {
-	const SolverBody& b1 = bodies[c.b1];
-	const SolverBody& b2 = bodies[c.b2];
+	const BodyRecord& b1 = records[c.b1];
+	const BodyRecord& b2 = records[c.b2];
 	return c.frame * ((b2.pv + b2.pw.cross(c.c2)) - (b1.pv + b1.pw.cross(c.c1)));
 }
 
 void ContactDynamicsIntegrator::applyPseudoImpulse(const SolverContact& c, Real dP)
 {
-	const Vector3r P  = c.frame.row(0).transpose() * dP;
-	SolverBody&    b1 = bodies[c.b1];
-	SolverBody&    b2 = bodies[c.b2];
-	b2.pv += b2.invM.cwiseProduct(P);
-	b2.pw += b2.invI * c.c2.cross(P);
-	b1.pv -= b1.invM.cwiseProduct(P);
-	b1.pw -= b1.invI * c.c1.cross(P);
+	const Vector3r P = c.frame.row(0).transpose() * dP;
+	BodyRecord&    r1 = records[c.b1];
+	BodyRecord&    r2 = records[c.b2];
+	r2.pv += bodies[c.b2].invM.cwiseProduct(P);
+	r2.pw += bodies[c.b2].invI * c.c2.cross(P);
+	r1.pv -= bodies[c.b1].invM.cwiseProduct(P);
+	r1.pw -= bodies[c.b1].invI * c.c1.cross(P);
 }
 
 // Stage 5: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
@@ -470,30 +475,33 @@ void ContactDynamicsIntegrator::updatePositions()
 	for (const auto& b : *scene->bodies) {
 		if (!b) continue;
 		const SolverBody& sb = bodies[b->id];
-		if (!finite(sb.v) || !finite(sb.w) || !finite(sb.pv) || !finite(sb.pw))
+		const BodyRecord& br = records[b->id];
+		if (!finite(sb.v) || !finite(sb.w) || !finite(br.pv) || !finite(br.pw))
 			throw std::runtime_error("iter " + std::to_string(scene->iter) + ": body #" + std::to_string(b->id) + " got a NaN velocity in the Contact Dynamics step.");
 	}
 	for (const auto& b : *scene->bodies) {
 		if (!b) continue;
 		const SolverBody& sb = bodies[b->id];
+		const BodyRecord& br = records[b->id];
 		State&            s  = *b->state;
-		if (sb.dynamic) {
+		if (br.dynamic) {
 			s.vel    = sb.v;
 			s.angVel = sb.w;
 		}
-		s.pos += 0.5 * h * (s.vel + sb.pv);
-		rotate(s.ori, s.angVel + sb.pw, 0.5 * h);
+		s.pos += 0.5 * h * (s.vel + br.pv);
+		rotate(s.ori, s.angVel + br.pw, 0.5 * h);
 	}
 }
 
 void ContactDynamicsIntegrator::restoreStartOfStep()
 {
 	for (const auto& b : *scene->bodies) {
-		if (!b || !bodies[b->id].active) continue;
-		b->state->pos    = bodies[b->id].qi;
-		b->state->ori    = bodies[b->id].oi;
-		b->state->vel    = bodies[b->id].vi;
-		b->state->angVel = bodies[b->id].wi;
+		if (!b || !records[b->id].active) continue;
+		const BodyRecord& br = records[b->id];
+		b->state->pos    = br.qi;
+		b->state->ori    = br.oi;
+		b->state->vel    = br.vi;
+		b->state->angVel = br.wi;
 	}
 }
 
@@ -552,26 +560,29 @@ void ContactDynamicsIntegrator::trackEnergy()
 		contactDissip -= c.r.dot(0.5 * (c.Ui + localVelocity(c)));
 		const Vector3r P = c.frame.transpose() * c.r;
 		for (int side = 0; side < 2; ++side) {
-			const SolverBody& sb = bodies[side ? c.b2 : c.b1];
-			if (sb.dynamic) continue;
-			const Vector3r Pb = side ? P : Vector3r(-P);
-			const Vector3r cb = side ? c.c2 : c.c1;
-			kinematicWork += Pb.dot(0.5 * (sb.vi + sb.v)) + cb.cross(Pb).dot(0.5 * (sb.wi + sb.w));
+			const int         id = side ? c.b2 : c.b1;
+			const BodyRecord& br = records[id];
+			if (br.dynamic) continue;
+			const SolverBody& sb = bodies[id];
+			const Vector3r    Pb = side ? P : Vector3r(-P);
+			const Vector3r    cb = side ? c.c2 : c.c1;
+			kinematicWork += Pb.dot(0.5 * (br.vi + sb.v)) + cb.cross(Pb).dot(0.5 * (br.wi + sb.w));
 		}
 	}
 	Real kinetic = 0, gravWork = 0, extWork = 0, posCorr = 0;
 	for (const auto& b : *scene->bodies) {
-		if (!b || !bodies[b->id].dynamic) continue;
+		if (!b || !records[b->id].dynamic) continue;
 		const SolverBody& sb = bodies[b->id];
+		const BodyRecord& br = records[b->id];
 		const State&      s  = *b->state;
 		const Matrix3r    R  = s.ori.toRotationMatrix();
 		kinetic += 0.5 * s.mass * s.vel.squaredNorm() + 0.5 * s.angVel.dot(R * s.inertia.asDiagonal() * R.transpose() * s.angVel);
 		Vector3r g = gravity;
 		for (int k = 0; k < 3; ++k)
 			if (sb.invM[k] == 0) g[k] = 0;
-		gravWork -= s.mass * g.dot(s.pos - sb.qi);
-		posCorr += s.mass * g.dot(0.5 * h * sb.pv);
-		extWork -= h * (scene->forces.getForce(b->id).dot(0.5 * (sb.vi + sb.v)) + scene->forces.getTorque(b->id).dot(0.5 * (sb.wi + sb.w)));
+		gravWork -= s.mass * g.dot(s.pos - br.qi);
+		posCorr += s.mass * g.dot(0.5 * h * br.pv);
+		extWork -= h * (scene->forces.getForce(b->id).dot(0.5 * (br.vi + sb.v)) + scene->forces.getTorque(b->id).dot(0.5 * (br.wi + sb.w)));
 	}
 	scene->energy->add(kinetic, "kinetic", kinEnergyIx, /*reset*/ true);
 	scene->energy->add(gravWork, "gravWork", fieldWorkIx, false);

@@ -53,17 +53,20 @@ class Scene;
 
 class ContactDynamicsIntegrator : public NewtonIntegrator {
 public:
-	/*! One body's unknowns, copied once per step (flat array indexed by body id). */
+	/*! One body's unknowns in the solve (flat array indexed by body id): what a sweep touches. */
 	struct SolverBody {
-		Vector3r v, w;        // current velocity and angular velocity (u_free, then u_f)
-		Vector3r vi, wi;      // velocities at the start of the step (u_i)
-		Vector3r pv, pw;      // pseudo-velocities of the position correction (ũ)
-		Vector3r invM;        // inverse mass per global axis; 0 on blocked or kinematic axes
-		Matrix3r invI;        // inverse inertia (global frame); blocked rows/columns zero
-		Vector3r qi;          // position at the step start
-		Quaternionr oi;       // orientation at the step start
-		bool     active = false; // body exists and is handled by this engine
-		bool     dynamic = false;
+		Vector3r v, w;  // velocity and angular velocity (u_free, then u_f)
+		Vector3r invM;  // inverse mass per global axis; 0 on blocked or kinematic axes
+		Matrix3r invI;  // inverse inertia (global frame); blocked rows/columns zero
+	};
+	/*! The rest of a body's step data (flat array indexed by body id). */
+	struct BodyRecord {
+		Vector3r    vi, wi;  // velocities at the start of the step (u_i)
+		Vector3r    pv, pw;  // pseudo-velocities of the position correction (ũ)
+		Vector3r    qi;      // position at the step start
+		Quaternionr oi;      // orientation at the step start
+		bool        active = false; // body exists and is handled by this engine
+		bool        dynamic = false;
 	};
 	/*! One contact of the step (flat array, sorted by (id1,id2)). */
 	struct SolverContact {
@@ -73,6 +76,7 @@ public:
 		Vector3r     c1, c2;  // contact point minus body centres, at q_m
 		Matrix3r     W;       // local Delassus block
 		Matrix3r     Wlaw;    // A·W, the block seen by the law
+		Matrix3r     WlawInv; // its inverse (the sticking branch of the local solve)
 		Vector3r     A;       // law scaling diag(1/(1+en), 1/(1+et), 1/(1+et))
 		Vector3r     s;       // law offset: e∘U_i (closed) or (2 g_m/h, 0, 0) (open)
 		Vector3r     r;       // impulse, local frame
@@ -93,6 +97,7 @@ public:
 
 private:
 	std::vector<SolverBody>    bodies;
+	std::vector<BodyRecord>    records;
 	std::vector<SolverContact> contacts;
 	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
 

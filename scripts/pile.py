@@ -1,0 +1,42 @@
+"""Build Moreau's 3D sand pile with the Contact Dynamics engine.
+
+    yade -n -x scripts/pile.py [--out DIR] [--n-grains N] [--relax T] [--seed S] [...]
+    yade -n -x scripts/pile.py --out DIR --resume        # continue from the last checkpoint
+    yade-batch table.txt scripts/pile.py                  # one pile per table row
+
+Every option defaults to the paper's value (see ``yadecd.pile.DEFAULTS``; SI units: metres,
+seconds, kg/m³). In a ``yade-batch`` table the column names are the option names with
+underscores (n_grains, seed, ...), plus ``out``. Then run ``scripts/pile_figures.py DIR``.
+"""
+import argparse
+import os
+import sys
+
+from yadecd import pile
+
+parser = argparse.ArgumentParser(prog='pile.py', description=__doc__.split('\n')[0])
+parser.add_argument('--out', default='out/pile', help='run directory (created)')
+parser.add_argument('--resume', action='store_true', help='continue the run in --out from its checkpoint')
+for key, value in pile.DEFAULTS.items():
+    flag = '--' + key.replace('_', '-')
+    if isinstance(value, bool):
+        parser.add_argument(flag, dest=key, action='store_true', default=None)
+    else:
+        parser.add_argument(flag, dest=key, type=type(value), default=None, help='default: %r' % (value,))
+args = parser.parse_args(sys.argv[1:])
+params = {k: v for k, v in vars(args).items() if k in pile.DEFAULTS and v is not None}
+out = args.out
+
+if os.environ.get('YADE_BATCH'):
+    from yade import utils
+    table = dict(pile.DEFAULTS, out=out)
+    utils.readParamsFromTable(**table)
+    from yade.params import table as t
+    params = {k: getattr(t, k) for k in pile.DEFAULTS}
+    out = t.out
+
+p = pile.run(out, resume=args.resume, **params)
+print('pile done: %d grains in %.0f s wall time; run directory %s' % (p['n_grains'], p['wall_time_s'], out))
+if os.environ.get('YADE_BATCH'):
+    from yade import utils
+    utils.waitIfBatch()
