@@ -56,6 +56,8 @@ void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 	if (!(alertRatio >= 0)) bad("alertRatio=" + std::to_string(alertRatio) + ": must be ≥ 0.");
 	if (!(alertSpeedFactor >= 1)) bad("alertSpeedFactor=" + std::to_string(alertSpeedFactor) + ": must be ≥ 1, or contacts closing within a step are missed.");
 	if (!(positionTolerance > 0)) bad("positionTolerance=" + std::to_string(positionTolerance) + ": must be a positive number.");
+	if (!(relaxation > 0 && relaxation < 2)) bad("relaxation=" + std::to_string(relaxation) + ": must lie in (0, 2).");
+	if (sweepOrder < 0 || sweepOrder > 3) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 0, 1, 2 or 3.");
 	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
 }
 
@@ -222,7 +224,16 @@ void ContactDynamicsIntegrator::gatherContacts()
 		c.P      = 0;
 		contacts.push_back(c);
 	}
-	std::sort(contacts.begin(), contacts.end(), [](const SolverContact& a, const SolverContact& b) {
+	// Gauss–Seidel order: by height along −gravity (z without gravity), ties by ids. Sweeps
+	// alternate direction (see solveImpulses), so a load change travels the whole height of a
+	// stack in one half-sweep, down or up. The key depends only on the state, so a saved and
+	// reloaded scene sweeps in the same order.
+	const Vector3r up = gravity.squaredNorm() > 0 ? Vector3r(-gravity.normalized()) : Vector3r::UnitZ();
+	for (SolverContact& c : contacts)
+		c.height = up.dot(static_cast<ScGeom*>(c.I->geom.get())->contactPoint);
+	const bool byHeight = sweepOrder != 0;
+	std::sort(contacts.begin(), contacts.end(), [byHeight](const SolverContact& a, const SolverContact& b) {
+		if (byHeight && a.height != b.height) return a.height < b.height;
 		return a.b1 < b.b1 || (a.b1 == b.b1 && a.b2 < b.b2);
 	});
 	nContacts = int(contacts.size());
@@ -383,11 +394,15 @@ void ContactDynamicsIntegrator::solveImpulses()
 	for (int it = 1; it <= maxIter; ++it) {
 		nStatusChanges = 0;
 		Real change    = 0; // Σ (W_NN |Δr|)²: the velocity changes this sweep made
-		for (SolverContact& c : contacts) {
+		const bool up  = sweepOrder == 3 ? false : (sweepOrder == 2 ? it % 2 == 1 : true);
+		const long nc  = long(contacts.size());
+		for (long k = 0; k < nc; ++k) {
+			SolverContact& c = contacts[up ? k : nc - 1 - k];
 			const Vector3r U = localVelocity(c);
 			const Vector3r b = c.A.cwiseProduct(U - c.W * c.r + c.s);
 			Vector3r       r = c.r;
-			const int      st = int(cd::solveLocal(c.Wlaw, c.WlawInv, b, c.mu, r));
+			int            st = int(cd::solveLocal(c.Wlaw, c.WlawInv, b, c.mu, r));
+			if (relaxation != 1 && st != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + relaxation * (r - c.r), c.mu);
 			if (st != c.status) ++nStatusChanges;
 			c.status = st;
 			applyImpulse(c, r - c.r);
@@ -453,9 +468,11 @@ void ContactDynamicsIntegrator::correctPositions()
 	for (const SolverContact& c : contacts)
 		maxCorrectedOverlap = math::max(maxCorrectedOverlap, violation(c));
 	if (maxCorrectedOverlap <= positionTolerance) return;
+	const long nc = long(contacts.size());
 	for (int it = 1; it <= maxProjectionIter; ++it) {
 		Real worst = 0;
-		for (SolverContact& c : contacts) {
+		for (long k = 0; k < nc; ++k) {
+			SolverContact& c = contacts[it % 2 == 1 ? k : nc - 1 - k]; // alternating, as the velocity sweeps
 			const Real v    = violation(c);
 			worst           = math::max(worst, v);
 			const Real Pnew = math::max(Real(0), c.P + (2 / h) * v * c.refR / c.W(0, 0));

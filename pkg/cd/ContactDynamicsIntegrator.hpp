@@ -20,7 +20,8 @@
 //   updateContactFrames       ScGeom recomputed at q_m by the contact's own Ig2 functor
 //   computeFreeVelocities     u_free = u_i + h M⁻¹ (F_ext + m g)
 //   assembleLocalProblems     local frame, Delassus block W_αα, law offsets per contact
-//   solveImpulses             nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone)
+//   solveImpulses             nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
+//                             contacts ordered by height, sweeps alternately upwards and downwards
 //   correctPositions          split projection: removes only the overlap that the step created,
 //                             through pseudo-velocities that are never stored
 //   updatePositions           q_f = q_m + h/2 (u_f + ũ)
@@ -82,6 +83,7 @@ public:
 		Vector3r     r;       // impulse, local frame
 		Vector3r     Ui;      // U_i, local
 		Real         mu, gapI, gapM, rho, refR, allowance;
+		Real         height;  // contact point along −gravity: the sweep order
 		int          status;
 		Real         P;       // normal pseudo-impulse of the position correction
 	};
@@ -127,6 +129,8 @@ public:
 		((Real, tolerance, 1e-6, Attr::triggerPostLoad, "Convergence threshold of the Gauss–Seidel solve on the relative natural-map residual :yref:`residual<ContactDynamicsIntegrator.residual>` [-]."))
 		((int, maxIter, 1000, Attr::triggerPostLoad, "Maximum number of Gauss–Seidel sweeps per step. A step that stops here unconverged warns and counts in :yref:`nUnconverged<ContactDynamicsIntegrator.nUnconverged>`."))
 		((int, checkEvery, 1, Attr::triggerPostLoad, "Evaluate the exact residual (a pass that costs about one sweep) at most every this many sweeps, and only after a sweep whose own velocity changes sqrt(Σ(W_NN|Δr|)²) fell below tolerance·‖q‖ (or every checked sweep with recordResidual)."))
+		((Real, relaxation, 1.0, Attr::triggerPostLoad, "Over-relaxation ω of each local update, r ← P_C(r + ω(r_local − r)), in (0, 2); 1 is plain Gauss–Seidel. Open contacts always take r_local = 0."))
+		((int, sweepOrder, 1, Attr::triggerPostLoad, "Order of the Gauss–Seidel sweeps: 0 by body ids (id1, id2); 1 by contact height along −gravity, upwards; 2 by height, alternating upwards and downwards; 3 by height, downwards. Every order is deterministic."))
 		((Real, alertRatio, 0.05, Attr::triggerPostLoad, "Alert distance, static part, relative to the smaller radius of a pair [-]. A pair becomes a contact when its gap is below alertRatio·min(r1,r2) + alertSpeedFactor·dt·(|v1|+|v2|)."))
 		((Real, alertSpeedFactor, 2.0, Attr::triggerPostLoad, "Alert distance, speed part: how many steps' worth of travel at the current speed a pair is watched ahead [-]. Must be ≥ 1 so that no contact closing within a step is missed (no tunnelling)."))
 		((Real, positionTolerance, 1e-6, Attr::triggerPostLoad, "Position correction: largest overlap beyond a contact's allowance left at the end of a step, relative to the contact's reference radius [-]. Smaller values cost more correction sweeps in dense packings (the correction is a Gauss–Seidel too)."))

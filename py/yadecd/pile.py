@@ -9,9 +9,8 @@ Protocol (defaults are the paper's; SI units inside, the paper's cm in comments)
 - friction 0.4 everywhere, restitution 0, gravity 9.81 m/s², time step 2e-4 s;
 - creation: one grain at a time, 200 per second, at zero velocity, its centre on a vertical
   through a uniformly random point of the disc of radius 0.8 cm about the axis Oz, at the
-  lowest height at which it touches, without overlap, the grains met on that vertical (in
-  flight or not) or the paving: the height at which a grain dropped along that vertical would
-  first touch something.
+  lowest height at which it rests, without overlap, on a grain met on that vertical (in flight
+  or not), on the paving or on the plane (see :func:`creation_height`).
 
 A run directory holds ``run.json`` (the parameters), ``snap_<time>.npz`` snapshots (the data
 every analysis needs, see :func:`snapshot`), ``checkpoint.yade.gz`` + ``checkpoint.json`` (the
@@ -116,10 +115,14 @@ def build_scene(p):
 # ----------------------------------------------------------------------------- creation rule
 
 def creation_height(x, y, r, centres, radii):
-    """Lowest height of a sphere (radius ``r``) centred on the vertical through (x, y) that
-    touches, without overlap, the spheres (``centres``, ``radii``) met on that vertical: the
-    highest top z_j + sqrt((r + r_j)² − d_j²) over spheres at horizontal distance d_j < r + r_j;
-    the plane z = 0 (height r) when the vertical meets none."""
+    """Lowest height of a sphere (radius ``r``) centred on the vertical through (x, y) at which
+    it rests on one of the spheres (``centres``, ``radii``) met on that vertical, or on the
+    plane z = 0, without overlapping any of them.
+
+    Sphere j is met when its horizontal distance d_j < r + r_j; the new sphere then overlaps it
+    for heights within s_j = sqrt((r + r_j)² − d_j²) of z_j and rests on it at z_j + s_j. The
+    candidates are these resting heights and r (the plane); the lowest free one is returned, so
+    a grain in flight above the pile does not lift the new grain above itself."""
     if len(radii) == 0:
         return r
     d2 = (centres[:, 0] - x) ** 2 + (centres[:, 1] - y) ** 2
@@ -127,7 +130,12 @@ def creation_height(x, y, r, centres, radii):
     hit = reach > 0
     if not hit.any():
         return r
-    return max(r, float(np.max(centres[hit, 2] + np.sqrt(reach[hit]))))
+    zc, s = centres[hit, 2], np.sqrt(reach[hit])
+    candidates = np.sort(np.concatenate(([r], zc + s)))
+    candidates = candidates[candidates >= r]
+    # free: outside every open interval (z_j − s_j, z_j + s_j); a relative margin absorbs round-off
+    free = np.all(np.abs(candidates[:, None] - zc[None, :]) >= s[None, :] * (1 - 1e-12), axis=1)
+    return float(candidates[np.argmax(free)])  # the highest candidate is always free
 
 
 class Feeder:
