@@ -96,7 +96,7 @@ say "plugin installed into $YADE_LIBDIR"
 
 # ---------------------------------------------------------------- 4. demo
 if [ "$DEMO" = 1 ]; then
-  say "running the demo: a small Contact Dynamics pile (scripts/pile.py --small)"
-  "$YADE_BIN" -n -x "$REPO/scripts/demo.py"
+  say "running the demo: a small Contact Dynamics pile and its figures (scripts/demo.py)"
+  (cd "$REPO" && "$YADE_BIN" -n -x scripts/demo.py)
 fi
-say "done. Run scripts with: $YADE_BIN script.py   (or scripts/yade script.py)"
+say "done in $(( $(date +%s) - T0 )) s. Run YADE scripts with: scripts/yade script.py  (= $YADE_BIN)"
