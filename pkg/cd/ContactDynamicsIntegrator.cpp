@@ -91,6 +91,60 @@ boost::python::tuple ContactDynamicsIntegrator::pySolveLocal(const Matrix3r& W, 
 	return boost::python::make_tuple(r, status);
 }
 
+// Global Delassus block between contacts a and b through the bodies they share:
+// s_a s_b F_a (diag(1/m) − [c_a]x I⁻¹ [c_b]x) F_bᵀ, s = +1 on body 2, −1 on body 1.
+boost::python::dict ContactDynamicsIntegrator::pyProblem() const
+{
+	namespace py = boost::python;
+	const size_t n = contacts.size();
+	if (n > 3000) throw std::invalid_argument("ContactDynamicsIntegrator.problem(): " + std::to_string(n) + " contacts, dense export is limited to 3000.");
+	std::vector<std::vector<Real>> W(3 * n, std::vector<Real>(3 * n, 0));
+	for (size_t a = 0; a < n; ++a)
+		for (size_t b = 0; b < n; ++b) {
+			const SolverContact &ca = contacts[a], &cb = contacts[b];
+			Matrix3r             K = Matrix3r::Zero();
+			for (int sa = 0; sa < 2; ++sa)
+				for (int sb = 0; sb < 2; ++sb) {
+					const int ia = sa ? ca.b2 : ca.b1, ib = sb ? cb.b2 : cb.b1;
+					if (ia != ib) continue;
+					const SolverBody& body = bodies[ia];
+					const Real        sign = (sa ? 1 : -1) * (sb ? 1 : -1);
+					K += sign * (Matrix3r(body.invM.asDiagonal()) - skew(sa ? ca.c2 : ca.c1) * body.invI * skew(sb ? cb.c2 : cb.c1));
+				}
+			const Matrix3r Wab = ca.A.asDiagonal() * (ca.frame * K * cb.frame.transpose());
+			for (int i = 0; i < 3; ++i)
+				for (int j = 0; j < 3; ++j)
+					W[3 * a + i][3 * b + j] = Wab(i, j);
+		}
+	py::list Wl, q, mu, r, ids;
+	for (size_t a = 0; a < n; ++a) {
+		const Vector3r Ulaw = contacts[a].A.cwiseProduct(localVelocity(contacts[a]) + contacts[a].s); // = W r + q
+		for (int i = 0; i < 3; ++i) {
+			Real Wr = 0;
+			for (size_t b = 0; b < n; ++b)
+				for (int j = 0; j < 3; ++j)
+					Wr += W[3 * a + i][3 * b + j] * contacts[b].r[j];
+			q.append(Ulaw[i] - Wr);
+			r.append(contacts[a].r[i]);
+		}
+		mu.append(contacts[a].mu);
+		ids.append(py::make_tuple(contacts[a].b1, contacts[a].b2));
+	}
+	for (const auto& row : W) {
+		py::list l;
+		for (Real v : row)
+			l.append(v);
+		Wl.append(l);
+	}
+	py::dict d;
+	d["W"]   = Wl;
+	d["q"]   = q;
+	d["mu"]  = mu;
+	d["r"]   = r;
+	d["ids"] = ids;
+	return d;
+}
+
 Vector3r ContactDynamicsIntegrator::pyResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho) { return cd::naturalMapResidual(r, U, mu, rho); }
 
 // ----------------------------------------------------------------------------- the step

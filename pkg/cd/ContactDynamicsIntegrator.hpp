@@ -157,9 +157,11 @@ public:
 		,
 		/* py */
 		.def("solveLocal", &ContactDynamicsIntegrator::pySolveLocal, (boost::python::arg("W"), boost::python::arg("b"), boost::python::arg("mu")), "Solve one local Signorini–Coulomb problem U = W r + b exactly; return (r, status) with status 0 open, 1 sticking, 2 sliding. Exposed for tests and cross-checks.").staticmethod("solveLocal")
+		.def("problem", &ContactDynamicsIntegrator::pyProblem, "The frictional contact problem of the last step as a dict: ``W`` (dense 3n×3n Delassus matrix of the law, list of rows), ``q`` (3n free local velocities, so that the law's velocity is W·r + q), ``mu`` (n), ``r`` (3n impulses found, local frames, normal first), ``ids`` (n pairs). Siconos' FrictionContactProblem(3, n, W, q, mu) is the same problem when restitution is 0. Dense: at most 3000 contacts.")
 		.def("naturalMapResidual", &ContactDynamicsIntegrator::pyResidual, (boost::python::arg("r"), boost::python::arg("U"), boost::python::arg("mu"), boost::python::arg("rho") = 1.0), "Natural-map residual vector of one contact, (r − P_C(r − ρ Û))/ρ with Û = U + μ|U_T| e_N.").staticmethod("naturalMapResidual")
 	);
 	// clang-format on
+	boost::python::dict         pyProblem() const;
 	static boost::python::tuple pySolveLocal(const Matrix3r& W, const Vector3r& b, Real mu);
 	static Vector3r             pyResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho);
 	DECLARE_LOGGER;

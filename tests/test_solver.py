@@ -1,0 +1,132 @@
+"""The local Signorini–Coulomb solver and the Gauss–Seidel solve, against closed forms and
+against Siconos' NSGS solver (Debian's python3-siconos, an independent implementation)."""
+import math
+import random
+import unittest
+
+import numpy as np
+
+from yade import O, Vector3, Matrix3
+from yade.wrapper import ContactDynamicsIntegrator as CDI
+
+import yadecd
+from yadecd import scenes
+
+try:
+    import siconos.numerics as sn
+except ImportError:  # the set-up installs python3-siconos; a missing one must not pass silently
+    sn = None
+
+
+def siconos_solve(W, q, mu, tol=1e-14):
+    """Siconos NSGS on the problem u = W r + q, û = u + μ|u_T| e_N ∈ C*, r ∈ C, û ⊥ r."""
+    n = len(mu)
+    W, q = np.array(W, dtype=float), np.array(q, dtype=float)
+    problem = sn.FrictionContactProblem(3, n, W, q, np.array(mu, dtype=float))
+    opts = sn.SolverOptions(sn.SICONOS_FRICTION_3D_NSGS)
+    opts.iparam[sn.SICONOS_IPARAM_MAX_ITER] = 100000
+    opts.dparam[sn.SICONOS_DPARAM_TOL] = tol
+    r, u = np.zeros(3 * n), np.zeros(3 * n)
+    info = sn.fc3d_driver(problem, r, u, opts)
+    return info, r, u
+
+
+def cone_law_error(r, U, mu):
+    """Max violation of the Signorini–Coulomb law by (r, U), in natural-map form (ρ = 1)."""
+    return CDI.naturalMapResidual(Vector3(*r), Vector3(*U), mu).norm()
+
+
+class TestLocalSolver(unittest.TestCase):
+    """One contact, U = W r + b, solved exactly."""
+
+    def test_closed_form_diagonal(self):
+        """W = diag(a, c, c): open if b_N ≥ 0; stick r = −W⁻¹b if |b_T|/c ≤ μ(−b_N/a);
+        else slide: r_N = −b_N/a, r_T = −μ r_N b_T/|b_T|."""
+        rnd = random.Random(3)
+        counts = [0, 0, 0]
+        for _ in range(300):
+            a, c, mu = rnd.uniform(0.5, 3), rnd.uniform(0.5, 5), rnd.uniform(0, 1)
+            b = Vector3(rnd.uniform(-1, 1), rnd.uniform(-1, 1), rnd.uniform(-1, 1))
+            r, st = CDI.solveLocal(Matrix3(a, 0, 0, 0, c, 0, 0, 0, c), b, mu)
+            bt = math.hypot(b[1], b[2])
+            if b[0] >= 0:
+                expected, est = Vector3(0, 0, 0), 0
+            elif bt / c <= mu * (-b[0] / a):
+                expected, est = Vector3(-b[0] / a, -b[1] / c, -b[2] / c), 1
+            else:
+                rn = -b[0] / a
+                expected, est = Vector3(rn, -mu * rn * b[1] / bt, -mu * rn * b[2] / bt), 2
+            counts[est] += 1
+            self.assertEqual(st, est)
+            self.assertLess((r - expected).norm(), 1e-14 * (1 + expected.norm()))
+        self.assertTrue(all(k > 20 for k in counts), 'all three branches exercised: %s' % counts)
+
+    def test_coupled_blocks_satisfy_the_law(self):
+        """A full SPD W (coupled normal and tangential parts): the result satisfies the law."""
+        rnd = np.random.default_rng(5)
+        for _ in range(200):
+            A = rnd.normal(size=(3, 3)) * 0.3 + np.diag(rnd.uniform(1, 2, 3))
+            W = A @ A.T
+            b, mu = rnd.uniform(-1, 1, 3), rnd.uniform(0, 0.8)
+            r, st = CDI.solveLocal(Matrix3(*W.flatten()), Vector3(*b), mu)
+            U = W @ np.array(r) + b
+            self.assertLess(cone_law_error(r, U, mu), 1e-12, 'W=%s b=%s mu=%g' % (W.tolist(), b.tolist(), mu))
+
+    @unittest.skipIf(sn is None, 'python3-siconos missing')
+    def test_against_siconos_local(self):
+        """Same local problems solved by Siconos NSGS: reactions agree to 1e-8."""
+        rnd = np.random.default_rng(7)
+        for _ in range(100):
+            A = rnd.normal(size=(3, 3)) * 0.2 + np.diag(rnd.uniform(1, 2, 3))
+            W = A @ A.T
+            b, mu = rnd.uniform(-1, 1, 3), rnd.uniform(0, 0.8)
+            r, _ = CDI.solveLocal(Matrix3(*W.flatten()), Vector3(*b), mu)
+            info, rs, _ = siconos_solve(W, b, [mu])
+            self.assertEqual(info, 0)
+            self.assertLess(np.abs(np.array(r) - rs).max(), 1e-8)
+
+
+@unittest.skipIf(sn is None, 'python3-siconos missing')
+class TestAgainstSiconos(unittest.TestCase):
+    """A whole step's frictional contact problem, exported by the engine (``problem()``), solved
+    by Siconos: impulses agree to 1e-8 where the solution is unique (as many independent
+    contacts as needed, W non-singular), velocities wherever."""
+
+    def test_column_step(self):
+        scenes.column(3, tolerance=1e-13, maxIter=100000)
+        O.dt = 1e-3
+        O.step()
+        pb = yadecd.integrator().problem()
+        info, rs, _ = siconos_solve(pb['W'], pb['q'], pb['mu'])
+        self.assertEqual(info, 0)
+        self.assertLess(np.abs(np.array(pb['r']) - rs).max(), 1e-8 * np.abs(rs).max())
+
+    def test_sliding_stack_step(self):
+        """Spheres pushed sideways on the floor and on each other: sliding and sticking mixed."""
+        sc = scenes.column(3, mu=0.2, tolerance=1e-13, maxIter=100000)
+        for k, i in enumerate(sc['ids']):
+            O.bodies[i].state.vel = Vector3(0.3 * (k - 1), 0.1 * k, 0)
+        O.step()
+        cd = yadecd.integrator()
+        pb = cd.problem()
+        self.assertGreater(cd.nSliding, 0)
+        info, rs, us = siconos_solve(pb['W'], pb['q'], pb['mu'])
+        self.assertEqual(info, 0)
+        self.assertLess(np.abs(np.array(pb['r']) - rs).max(), 1e-8 * np.abs(rs).max())
+
+    def test_packing_velocities(self):
+        """A settling packing (hyperstatic: impulses not unique): local velocities agree."""
+        scenes.random_loose_packing(n=15, tolerance=1e-12, maxIter=200000)
+        O.run(300, True)
+        O.step()
+        pb = yadecd.integrator().problem()
+        W, q, r = np.array(pb['W']), np.array(pb['q']), np.array(pb['r'])
+        info, rs, us = siconos_solve(W, q, pb['mu'], tol=1e-12)
+        self.assertEqual(info, 0)
+        u = W @ r + q
+        scale = max(np.abs(q).max(), 1e-30)
+        self.assertLess(np.abs(u - us).max() / scale, 1e-6)
+
+
+if __name__ == '__main__':
+    unittest.main()
