@@ -50,6 +50,7 @@ DEFAULTS = dict(
     tolerance=1e-3,      # Gauss–Seidel relative residual (see docs/pile.md for its effect on forces)
     max_iter=2000,
     vtk=False,           # also export VTK files (ParaView) at snapshots
+    stop_time=0.0,       # s; > 0: checkpoint and stop there (continue later with resume)
 )
 
 
@@ -153,7 +154,7 @@ class Feeder:
                      and (b.state.pos[0] ** 2 + b.state.pos[1] ** 2) < (self.reach + 2 * self.p['d_max']) ** 2]
 
     def create(self):
-        if self.count % 20 == 0:
+        if self.count % 20 == 0 or not self.near:
             self.refresh()
         p, rng = self.p, self.rng
         rr = p['feed_radius'] * math.sqrt(rng.random())
@@ -275,13 +276,14 @@ def run(run_dir, resume=False, log=print, **overrides):
         return dict(births={str(k): v for k, v in births.items()}, rng=rng.bit_generator.state,
                     created=feeder.count, snaps=sorted(done_snaps))
 
-    while O.time < t_end - 0.5 * p['dt']:
+    t_stop = min(t_end, overrides.get('stop_time') or (0 if resume else p['stop_time']) or t_end)
+    while O.time < t_stop - 0.5 * p['dt']:
         if feeder.count < p['n_grains'] and O.iter % period == 0:
             feeder.create()
         steps = period - O.iter % period
         if snaps:
             steps = min(steps, max(1, int(round((snaps[0] - O.time) / p['dt']))))
-        steps = min(steps, max(1, int(round((t_end - O.time) / p['dt']))))
+        steps = min(steps, max(1, int(round((t_stop - O.time) / p['dt']))))
         O.run(steps, True)
         if snaps and O.time >= snaps[0] - 0.5 * p['dt']:
             tag = '%.3f' % snaps.pop(0)
@@ -291,7 +293,7 @@ def run(run_dir, resume=False, log=print, **overrides):
                 export.VTKExporter(os.path.join(run_dir, 'vtk_%08.3f' % O.time)).exportSpheres(what=dict(vel='b.state.vel'))
             done_snaps.add(tag)
         now = time.time()
-        if now - last_log > 10 or O.time >= t_end - 0.5 * p['dt']:
+        if now - last_log > 10 or O.time >= t_stop - 0.5 * p['dt']:
             rate = (O.time - sim0) / max(now - wall0, 1e-9)
             eta = (t_end - O.time) / rate if rate > 0 else float('inf')
             log('t=%7.3f s  grains %6d/%d  contacts %6d  sweeps %4d  residual %.1e  %.3f sim-s/s  ETA %s'

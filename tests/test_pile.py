@@ -1,0 +1,127 @@
+"""The sand-pile pipeline: the creation rule on constructed cases, and the whole pipeline
+(deposition, checkpoint/resume, snapshots, analyses, figures) on a tiny pile."""
+import importlib.util
+import json
+import math
+import os
+import shutil
+import tempfile
+import unittest
+
+import numpy as np
+
+from yade import O
+import yadecd.pile as pile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+
+
+def load_figures():
+    """pile_figures without importing yadecd/__init__ twice (same path as the command line)."""
+    spec = importlib.util.spec_from_file_location('pile_figures_t', os.path.join(REPO, 'py', 'yadecd', 'pile_figures.py'))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+class TestCreationRule(unittest.TestCase):
+    """Lowest height at which a new sphere rests, without overlap, on a sphere met on its
+    vertical: z_j + sqrt((r + r_j)² − d²), or r on the bare plane."""
+
+    def test_bare_plane(self):
+        self.assertEqual(pile.creation_height(0, 0, 0.002, np.zeros((0, 3)), np.zeros(0)), 0.002)
+
+    def test_on_one_sphere(self):
+        """A grain on the plane: the new one rests on it (the plane under it is not free)."""
+        c, rj, r, d = np.array([[0.0, 0.0, 0.003]]), np.array([0.003]), 0.002, 0.004
+        z = pile.creation_height(d, 0, r, c, rj)
+        self.assertAlmostEqual(z, 0.003 + math.sqrt((r + 0.003) ** 2 - d ** 2), delta=1e-15)
+
+    def test_free_plane_under_a_floating_grain(self):
+        """Room between the plane and a grain in flight: the new grain goes on the plane."""
+        c, rj = np.array([[0.0, 0.0, 0.02]]), np.array([0.003])
+        self.assertEqual(pile.creation_height(0.004, 0, 0.002, c, rj), 0.002)
+
+    def test_below_a_grain_in_flight(self):
+        """A grain in flight high above leaves room: the new grain rests on the lower one."""
+        c = np.array([[0.0, 0.0, 0.003], [0.0, 0.0, 0.05]])
+        rj = np.array([0.003, 0.003])
+        self.assertAlmostEqual(pile.creation_height(0, 0, 0.002, c, rj), 0.003 + 0.005, delta=1e-15)
+
+    def test_no_room_below(self):
+        """A grain just above leaves no room: the new grain rests on top of it."""
+        c = np.array([[0.0, 0.0, 0.003], [0.0, 0.0, 0.011]])
+        rj = np.array([0.003, 0.003])
+        self.assertAlmostEqual(pile.creation_height(0, 0, 0.002, c, rj), 0.011 + 0.005, delta=1e-15)
+
+    def test_never_overlaps(self):
+        rnd = np.random.default_rng(2)
+        for _ in range(200):
+            c = rnd.uniform([-0.01, -0.01, 0], [0.01, 0.01, 0.03], size=(30, 3))
+            rj = rnd.uniform(0.00125, 0.0025, 30)
+            x, y, r = rnd.uniform(-0.005, 0.005), rnd.uniform(-0.005, 0.005), rnd.uniform(0.00125, 0.0025)
+            z = pile.creation_height(x, y, r, c, rj)
+            d = np.sqrt((c[:, 0] - x) ** 2 + (c[:, 1] - y) ** 2 + (c[:, 2] - z) ** 2)
+            self.assertGreaterEqual((d - r - rj).min(), -1e-12)
+            self.assertGreaterEqual(z, r)
+
+
+class TestTinyPile(unittest.TestCase):
+    """Deposition of 60 grains with the paper's protocol, interrupted and resumed, then the
+    analyses and every figure."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix='cd-pile-')
+        cls.run_dir = os.path.join(cls.tmp, 'run')
+        args = dict(n_grains=60, relax=0.1, snap_every=0.2, seed=3, log=lambda s: None)
+        pile.run(cls.run_dir, stop_time=0.15, **args)
+        cls.stopped_at = O.time
+        pile.run(cls.run_dir, resume=True, log=lambda s: None)
+        cls.resumed = [tuple(b.state.pos) for b in O.bodies]
+        cls.straight_dir = os.path.join(cls.tmp, 'straight')
+        pile.run(cls.straight_dir, **args)
+        cls.straight = [tuple(b.state.pos) for b in O.bodies]
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def test_protocol(self):
+        """60 grains, one every 1/(200 grains/s), at zero velocity within 0.8 cm of the axis."""
+        snaps = sorted(f for f in os.listdir(self.straight_dir) if f.startswith('snap_'))
+        s = np.load(os.path.join(self.straight_dir, snaps[-1]))
+        births = np.sort(s['birth'][~s['fixed']])
+        self.assertEqual(len(births), 60)
+        np.testing.assert_allclose(np.diff(births), 1 / 200, rtol=1e-9)
+        self.assertAlmostEqual(births[0], 0.0)
+        d = s['radius'][~s['fixed']] * 2
+        self.assertTrue(((d >= 0.0025) & (d <= 0.005)).all())
+        with open(os.path.join(self.straight_dir, 'run.json')) as f:
+            p = json.load(f)
+        self.assertEqual(p['mu'], 0.4)
+        self.assertEqual(p['dt'], 2e-4)
+
+    def test_resume_is_exact(self):
+        """Stopped at t=0.15 s, checkpointed and resumed: the same pile as without stopping."""
+        self.assertAlmostEqual(self.stopped_at, 0.15, delta=1e-9)
+        self.assertEqual(self.resumed, self.straight)
+
+    def test_analyses_and_figures(self):
+        out = os.path.join(self.tmp, 'fig')
+        summary = load_figures().analyse(self.straight_dir, out)
+        for k in range(8):
+            self.assertTrue(any(f.startswith('fig%d' % k) and f.endswith('.png') for f in os.listdir(out)), 'figure %d' % k)
+        with open(os.path.join(out, 'summary.json')) as f:
+            saved = json.load(f)
+        for key in ('slope_deg', 'H_m', 'p_center_Pa', 'hydrostatic_Pa', 'floor_load_over_weight'):
+            self.assertIn(key, saved)
+        self.assertEqual(saved['n_pile_grains'], 60)
+        self.assertTrue(math.isfinite(saved['slope_deg']) and math.isfinite(saved['p_center_Pa']))
+        # grains still moving or resting on the wall between paving grains are not floor load
+        self.assertTrue(0 < saved['floor_load_over_weight'] <= 1.05)
+
+
+if __name__ == '__main__':
+    unittest.main()
