@@ -6,7 +6,14 @@
 
 Every option defaults to the paper's value (see ``yadecd.pile.DEFAULTS``; SI units: metres,
 seconds, kg/m³). In a ``yade-batch`` table the column names are the option names with
-underscores (n_grains, seed, ...), plus ``out``. Then run ``scripts/pile_figures.py DIR``.
+underscores (n_grains, seed, ...), plus ``out`` and YADE's ``description`` (the job name);
+values are Python expressions, so strings are quoted::
+
+    description out            n_grains seed
+    pileA       'out/pileA'    2000     1
+    pileB       'out/pileB'    2000     2
+
+Then run ``scripts/pile_figures.py DIR``.
 """
 import argparse
 import os
