@@ -31,6 +31,18 @@ def siconos_solve(W, q, mu, tol=1e-14):
     return info, r, u
 
 
+def random_local_problems(seed, count, coupling):
+    """``count`` local problems (W, b, μ) with W = A Aᵀ SPD, A = diag(1..2) + coupling·noise,
+    each returned with the engine's solution r."""
+    rnd = np.random.default_rng(seed)
+    for _ in range(count):
+        A = rnd.normal(size=(3, 3)) * coupling + np.diag(rnd.uniform(1, 2, 3))
+        W = A @ A.T
+        b, mu = rnd.uniform(-1, 1, 3), rnd.uniform(0, 0.8)
+        r, _ = CDI.solveLocal(Matrix3(*W.flatten()), Vector3(*b), mu)
+        yield W, b, mu, np.array(r)
+
+
 def cone_law_error(r, U, mu):
     """Max violation of the Signorini–Coulomb law by (r, U), in natural-map form (ρ = 1)."""
     return CDI.naturalMapResidual(Vector3(*r), Vector3(*U), mu).norm()
@@ -63,27 +75,17 @@ class TestLocalSolver(unittest.TestCase):
 
     def test_coupled_blocks_satisfy_the_law(self):
         """A full SPD W (coupled normal and tangential parts): the result satisfies the law."""
-        rnd = np.random.default_rng(5)
-        for _ in range(200):
-            A = rnd.normal(size=(3, 3)) * 0.3 + np.diag(rnd.uniform(1, 2, 3))
-            W = A @ A.T
-            b, mu = rnd.uniform(-1, 1, 3), rnd.uniform(0, 0.8)
-            r, st = CDI.solveLocal(Matrix3(*W.flatten()), Vector3(*b), mu)
-            U = W @ np.array(r) + b
+        for W, b, mu, r in random_local_problems(5, 200, 0.3):
+            U = W @ r + b
             self.assertLess(cone_law_error(r, U, mu), 1e-12, 'W=%s b=%s mu=%g' % (W.tolist(), b.tolist(), mu))
 
     @unittest.skipIf(sn is None, 'python3-siconos missing')
     def test_against_siconos_local(self):
         """Same local problems solved by Siconos NSGS: reactions agree to 1e-8."""
-        rnd = np.random.default_rng(7)
-        for _ in range(100):
-            A = rnd.normal(size=(3, 3)) * 0.2 + np.diag(rnd.uniform(1, 2, 3))
-            W = A @ A.T
-            b, mu = rnd.uniform(-1, 1, 3), rnd.uniform(0, 0.8)
-            r, _ = CDI.solveLocal(Matrix3(*W.flatten()), Vector3(*b), mu)
+        for W, b, mu, r in random_local_problems(7, 100, 0.2):
             info, rs, _ = siconos_solve(W, b, [mu])
             self.assertEqual(info, 0)
-            self.assertLess(np.abs(np.array(r) - rs).max(), 1e-8)
+            self.assertLess(np.abs(r - rs).max(), 1e-8)
 
 
 @unittest.skipIf(sn is None, 'python3-siconos missing')
