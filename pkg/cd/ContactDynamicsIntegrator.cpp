@@ -445,6 +445,8 @@ void ContactDynamicsIntegrator::solveImpulses()
 	}
 	converged   = false;
 	const Real scale = qNorm > 0 ? qNorm : Real(1);
+	Real omega = relaxation, bestChange = std::numeric_limits<Real>::infinity();
+	int  stalled = 0;
 	for (int it = 1; it <= maxIter; ++it) {
 		nStatusChanges = 0;
 		Real change    = 0; // Σ (W_NN |Δr|)²: the velocity changes this sweep made
@@ -456,7 +458,7 @@ void ContactDynamicsIntegrator::solveImpulses()
 			const Vector3r b = c.A.cwiseProduct(U - c.W * c.r + c.s);
 			Vector3r       r = c.r;
 			int            st = int(cd::solveLocal(c.Wlaw, c.WlawInv, b, c.mu, r));
-			if (relaxation != 1 && st != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + relaxation * (r - c.r), c.mu);
+			if (omega != 1 && st != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + omega * (r - c.r), c.mu);
 			if (st != c.status) ++nStatusChanges;
 			c.status = st;
 			applyImpulse(c, r - c.r);
@@ -467,6 +469,15 @@ void ContactDynamicsIntegrator::solveImpulses()
 		// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
 		// are below the tolerance (a converged state barely changes), or when asked to record.
 		const bool quiet = math::sqrt(change) <= tolerance * scale;
+		// Over-relaxation is not safe with friction: once the sweeps stop contracting (the
+		// smallest change so far not improved for 50 sweeps), finish the step with plain GS.
+		if (omega != 1) {
+			if (change < 0.99 * bestChange) {
+				bestChange = change;
+				stalled    = 0;
+			} else if (++stalled >= 50)
+				omega = 1;
+		}
 		if (it == maxIter || ((quiet || recordResidual) && it % checkEvery == 0)) {
 			residual = computeResidual();
 			if (recordResidual) residualHistory.push_back(residual);
