@@ -73,6 +73,18 @@ class TestLocalSolver(unittest.TestCase):
             self.assertLess((r - expected).norm(), 1e-14 * (1 + expected.norm()))
         self.assertTrue(all(k > 20 for k in counts), 'all three branches exercised: %s' % counts)
 
+    def test_residual_zero_on_solutions(self):
+        """The natural-map residual vanishes on each branch of the law, frictionless (μ = 0)
+        included: open (r = 0, U_N > 0), sticking (U = 0, r inside), sliding (r on the cone,
+        U_T opposite r_T)."""
+        for mu in (0.0, 0.4):
+            cases = [((0, 0, 0), (1.0, 0.2, -0.1)), ((1.0, 0.1 * mu, 0), (0, 0, 0)),
+                     ((1.0, -mu, 0), (0, 0.5, 0))]
+            for r, U in cases:
+                self.assertLess(cone_law_error(r, U, mu), 1e-15, 'mu=%g r=%s U=%s' % (mu, r, U))
+        # and is large off the law: an open contact carrying an impulse
+        self.assertGreater(cone_law_error((1.0, 0, 0), (1.0, 0, 0), 0.0), 0.5)
+
     def test_coupled_blocks_satisfy_the_law(self):
         """A full SPD W (coupled normal and tangential parts): the result satisfies the law."""
         for W, b, mu, r in random_local_problems(5, 200, 0.3):

@@ -27,7 +27,7 @@ namespace cd {
 	inline Vector3r projectOnCone(const Vector3r& z, Real mu)
 	{
 		const Real zt = math::sqrt(z[1] * z[1] + z[2] * z[2]);
-		if (zt <= mu * z[0]) return z;                 // inside
+		if (z[0] >= 0 && zt <= mu * z[0]) return z;    // inside (z_N ≥ 0 matters when μ = 0)
 		if (mu * zt <= -z[0] || zt == 0) return Vector3r::Zero(); // inside the polar cone
 		const Real a = (mu * zt + z[0]) / (1 + mu * mu); // onto the boundary ray
 		return Vector3r(a, mu * a * z[1] / zt, mu * a * z[2] / zt);
