@@ -372,7 +372,6 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 		c.W                  = c.frame * K * c.frame.transpose();
 		if (!(c.W(0, 0) > 0))
 			throw std::invalid_argument("contact " + pairName(c.b1, c.b2) + " joins two bodies that cannot move: make one of them dynamic or remove the contact.");
-		c.rho = 1 / c.W(0, 0);
 		c.Ui  = c.frame * ((r2.vi + r2.wi.cross(c.c2)) - (r1.vi + r1.wi.cross(c.c1)));
 		auto* phys = static_cast<CDPhys*>(c.I->phys.get());
 		if (c.gapM > 0) { // open: the end-of-step gap g_m + h/2 U_N must stay ≥ 0

@@ -82,7 +82,7 @@ public:
 		Vector3r     s;       // law offset: e∘U_i (closed) or (2 g_m/h, 0, 0) (open)
 		Vector3r     r;       // impulse, local frame
 		Vector3r     Ui;      // U_i, local
-		Real         mu, gapI, gapM, rho, refR, allowance;
+		Real         mu, gapI, gapM, refR, allowance;
 		Real         height;  // contact point along −gravity: the sweep order
 		int          status;
 		Real         P;       // normal pseudo-impulse of the position correction
