@@ -20,7 +20,9 @@ void Bo1_Sphere_CDAabb::go(const shared_ptr<Shape>& cm, shared_ptr<Bound>& bv, c
 	// (periodic cells are rejected by the integrator; never throw here, inside an OpenMP loop)
 	const Real r = static_cast<Sphere*>(cm.get())->radius;
 	if (!bv) bv = shared_ptr<Bound>(new Aabb);
-	const Real     grow = ContactDynamicsIntegrator::alertShare(scene, r, b ? b->state->vel.norm() : Real(0));
+	// each box grows by the sphere's whole alert distance (own radius and speed), so that an
+	// obstacle whose box does not grow (a fixed wall or facet) is covered too
+	const Real     grow = ContactDynamicsIntegrator::alertDistance(scene, r, b ? b->state->vel.norm() : Real(0));
 	const Vector3r half = Vector3r::Constant(r + grow);
 	bv->min             = se3.position - half;
 	bv->max             = se3.position + half;

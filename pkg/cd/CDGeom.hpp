@@ -24,7 +24,7 @@ public:
 	FUNCTOR1D(Sphere);
 	// clang-format off
 	YADE_CLASS_BASE_DOC(Bo1_Sphere_CDAabb, Bo1_Sphere_Aabb,
-		"Bounding box of a sphere for Contact Dynamics: the sphere's box grown by its share of the alert distance, alertRatio·r + alertSpeedFactor·dt·|v| (see :yref:`ContactDynamicsIntegrator.alertRatio`), so that the collider proposes every pair that can come into contact within a step. :yref:`aabbEnlargeFactor<Bo1_Sphere_Aabb.aabbEnlargeFactor>` is ignored."
+		"Bounding box of a sphere for Contact Dynamics: the sphere's box grown by its own alert distance, alertRatio·r + alertSpeedFactor·dt·|v| (see :yref:`ContactDynamicsIntegrator.alertRatio`), so that the collider proposes every pair that can come into contact within a step. :yref:`aabbEnlargeFactor<Bo1_Sphere_Aabb.aabbEnlargeFactor>` is ignored."
 	);
 	// clang-format on
 };

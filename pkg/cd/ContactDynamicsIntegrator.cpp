@@ -75,13 +75,6 @@ Real ContactDynamicsIntegrator::alertDistance(const Scene* scene, Real rmin, Rea
 	return ratio * rmin + k * scene->dt * speedSum;
 }
 
-Real ContactDynamicsIntegrator::alertShare(const Scene* scene, Real radius, Real speed)
-{
-	// Each sphere's box grows by the whole static part of its own alert distance, so that a
-	// fixed wall or facet (whose box does not grow) is covered too.
-	return alertDistance(scene, radius, speed);
-}
-
 boost::python::tuple ContactDynamicsIntegrator::pySolveLocal(const Matrix3r& W, const Vector3r& b, Real mu)
 {
 	if (!(mu >= 0)) throw std::invalid_argument("solveLocal: mu must be ≥ 0.");

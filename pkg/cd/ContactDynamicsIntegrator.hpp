@@ -93,8 +93,6 @@ public:
 
 	/*! Alert distance of a pair (see CDGeom.hpp); scene's CD engine supplies the parameters. */
 	static Real alertDistance(const Scene* scene, Real rmin, Real speedSum);
-	/*! Alert share of one sphere, used by Bo1_Sphere_CDAabb. */
-	static Real alertShare(const Scene* scene, Real radius, Real speed);
 	static const ContactDynamicsIntegrator* find(const Scene* scene);
 
 private:
