@@ -84,57 +84,71 @@ boost::python::tuple ContactDynamicsIntegrator::pySolveLocal(const Matrix3r& W, 
 	return boost::python::make_tuple(r, status);
 }
 
-// Global Delassus block between contacts a and b through the bodies they share:
-// s_a s_b F_a (diag(1/m) − [c_a]x I⁻¹ [c_b]x) F_bᵀ, s = +1 on body 2, −1 on body 1.
+// The law's Delassus matrix W (Ũ = W r + q over all contacts) as COO triplets, blocks
+// A_a F_a K_ab F_bᵀ with K_ab = s_a s_b (diag(1/m) − [c_a]x I⁻¹ [c_b]x) summed over the bodies
+// contacts a and b share (s = +1 on body 2, −1 on body 1). Entries of one block position may
+// come twice (a contact with itself, through both bodies): they are to be summed.
+void ContactDynamicsIntegrator::delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const
+{
+	std::vector<std::vector<std::pair<int, int>>> incident(bodies.size()); // (contact, side)
+	for (size_t a = 0; a < contacts.size(); ++a) {
+		if (records[contacts[a].b1].dynamic) incident[contacts[a].b1].push_back({ int(a), 0 });
+		if (records[contacts[a].b2].dynamic) incident[contacts[a].b2].push_back({ int(a), 1 });
+	}
+	for (size_t id = 0; id < bodies.size(); ++id) {
+		const SolverBody& body = bodies[id];
+		for (const auto& [a, sa] : incident[id])
+			for (const auto& [b, sb] : incident[id]) {
+				const SolverContact &ca = contacts[a], &cb = contacts[b];
+				const Real           sign = (sa ? 1 : -1) * (sb ? 1 : -1);
+				const Matrix3r       K    = sign * (Matrix3r(body.invM.asDiagonal()) - skew(sa ? ca.c2 : ca.c1) * body.invI * skew(sb ? cb.c2 : cb.c1));
+				const Matrix3r       Wab  = ca.A.asDiagonal() * (ca.frame * K * cb.frame.transpose());
+				for (int i = 0; i < 3; ++i)
+					for (int j = 0; j < 3; ++j) {
+						rows.push_back(3 * a + i);
+						cols.push_back(3 * b + j);
+						vals.push_back(double(Wab(i, j)));
+					}
+			}
+	}
+}
+
+namespace {
+	// A numpy array (a copy) of a flat vector, through numpy.frombuffer.
+	template <typename T> boost::python::object toNumpy(const std::vector<T>& v, const char* dtype)
+	{
+		namespace py = boost::python;
+		py::object bytes(py::handle<>(PyBytes_FromStringAndSize(reinterpret_cast<const char*>(v.data()), Py_ssize_t(v.size() * sizeof(T)))));
+		return py::import("numpy").attr("frombuffer")(bytes, dtype).attr("copy")();
+	}
+}
+
 boost::python::dict ContactDynamicsIntegrator::pyProblem() const
 {
-	namespace py = boost::python;
-	const size_t n = contacts.size();
-	if (n > 3000) throw std::invalid_argument("ContactDynamicsIntegrator.problem(): " + std::to_string(n) + " contacts, dense export is limited to 3000.");
-	std::vector<std::vector<Real>> W(3 * n, std::vector<Real>(3 * n, 0));
-	for (size_t a = 0; a < n; ++a)
-		for (size_t b = 0; b < n; ++b) {
-			const SolverContact &ca = contacts[a], &cb = contacts[b];
-			Matrix3r             K = Matrix3r::Zero();
-			for (int sa = 0; sa < 2; ++sa)
-				for (int sb = 0; sb < 2; ++sb) {
-					const int ia = sa ? ca.b2 : ca.b1, ib = sb ? cb.b2 : cb.b1;
-					if (ia != ib) continue;
-					const SolverBody& body = bodies[ia];
-					const Real        sign = (sa ? 1 : -1) * (sb ? 1 : -1);
-					K += sign * (Matrix3r(body.invM.asDiagonal()) - skew(sa ? ca.c2 : ca.c1) * body.invI * skew(sb ? cb.c2 : cb.c1));
-				}
-			const Matrix3r Wab = ca.A.asDiagonal() * (ca.frame * K * cb.frame.transpose());
-			for (int i = 0; i < 3; ++i)
-				for (int j = 0; j < 3; ++j)
-					W[3 * a + i][3 * b + j] = Wab(i, j);
-		}
-	py::list Wl, q, mu, r, ids;
-	for (size_t a = 0; a < n; ++a) {
-		const Vector3r Ulaw = contacts[a].A.cwiseProduct(localVelocity(contacts[a]) + contacts[a].s); // = W r + q
+	std::vector<long>   rows, cols, pairs;
+	std::vector<double> vals, q(3 * contacts.size()), mu, r;
+	delassusTriplets(rows, cols, vals);
+	for (size_t a = 0; a < contacts.size(); ++a) {
+		const SolverContact& c    = contacts[a];
+		const Vector3r       Ulaw = c.A.cwiseProduct(localVelocity(c) + c.s); // the law's velocity at the solution
 		for (int i = 0; i < 3; ++i) {
-			Real Wr = 0;
-			for (size_t b = 0; b < n; ++b)
-				for (int j = 0; j < 3; ++j)
-					Wr += W[3 * a + i][3 * b + j] * contacts[b].r[j];
-			q.append(Ulaw[i] - Wr);
-			r.append(contacts[a].r[i]);
+			q[3 * a + i] = double(Ulaw[i]);
+			r.push_back(double(c.r[i]));
 		}
-		mu.append(contacts[a].mu);
-		ids.append(py::make_tuple(contacts[a].b1, contacts[a].b2));
+		mu.push_back(double(c.mu));
+		pairs.push_back(c.b1);
+		pairs.push_back(c.b2);
 	}
-	for (const auto& row : W) {
-		py::list l;
-		for (Real v : row)
-			l.append(v);
-		Wl.append(l);
-	}
-	py::dict d;
-	d["W"]   = Wl;
-	d["q"]   = q;
-	d["mu"]  = mu;
-	d["r"]   = r;
-	d["ids"] = ids;
+	for (size_t k = 0; k < vals.size(); ++k) // q = Ũ − W r
+		q[rows[k]] -= vals[k] * r[cols[k]];
+	boost::python::dict d;
+	d["rows"] = toNumpy(rows, "int64");
+	d["cols"] = toNumpy(cols, "int64");
+	d["vals"] = toNumpy(vals, "float64");
+	d["q"]    = toNumpy(q, "float64");
+	d["mu"]   = toNumpy(mu, "float64");
+	d["r"]    = toNumpy(r, "float64");
+	d["ids"]  = toNumpy(pairs, "int64").attr("reshape")(-1, 2);
 	return d;
 }
 

@@ -119,6 +119,7 @@ private:
 	void     applyImpulse(const SolverContact& c, const Vector3r& dr);
 	void     applyPseudoImpulse(const SolverContact& c, Real dP);
 	Real     computeResidual();
+	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
 
 public:
 	// clang-format off
@@ -155,7 +156,7 @@ public:
 		,
 		/* py */
 		.def("solveLocal", &ContactDynamicsIntegrator::pySolveLocal, (boost::python::arg("W"), boost::python::arg("b"), boost::python::arg("mu")), "Solve one local Signorini–Coulomb problem U = W r + b exactly; return (r, status) with status 0 open, 1 sticking, 2 sliding. Exposed for tests and cross-checks.").staticmethod("solveLocal")
-		.def("problem", &ContactDynamicsIntegrator::pyProblem, "The frictional contact problem of the last step as a dict: ``W`` (dense 3n×3n Delassus matrix of the law, list of rows), ``q`` (3n free local velocities, so that the law's velocity is W·r + q), ``mu`` (n), ``r`` (3n impulses found, local frames, normal first), ``ids`` (n pairs). Siconos' FrictionContactProblem(3, n, W, q, mu) is the same problem when restitution is 0. Dense: at most 3000 contacts.")
+		.def("problem", &ContactDynamicsIntegrator::pyProblem, "The frictional contact problem of the last step, Ũ = W·r + q with (r, Ũ) obeying the Signorini–Coulomb law per contact (local frames, normal first), as a dict of numpy arrays: ``rows``, ``cols``, ``vals`` (the sparse 3n×3n Delassus matrix W of the law in COO triplets; repeated positions are to be summed), ``q`` (3n), ``mu`` (n), ``r`` (3n impulses found [N·s]), ``ids`` (n×2 body ids). With restitution 0 this is Siconos' FrictionContactProblem(3, n, W, q, mu); ``yadecd.fclib`` turns it into scipy matrices and FCLIB HDF5 files.")
 		.def("naturalMapResidual", &ContactDynamicsIntegrator::pyResidual, (boost::python::arg("r"), boost::python::arg("U"), boost::python::arg("mu"), boost::python::arg("rho") = 1.0), "Natural-map residual vector of one contact, (r − P_C(r − ρ Û))/ρ with Û = U + μ|U_T| e_N.").staticmethod("naturalMapResidual")
 	);
 	// clang-format on
