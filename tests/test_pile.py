@@ -117,7 +117,19 @@ class TestTinyPile(unittest.TestCase):
             saved = json.load(f)
         for key in ('slope_deg', 'H_m', 'p_center_Pa', 'hydrostatic_Pa', 'floor_load_over_weight'):
             self.assertIn(key, saved)
-        self.assertEqual(saved['n_pile_grains'], 60)
+        # pile grains: every grain but those in flight at the snapshot (no loaded contact), and
+        # a grain in flight must be moving (a grain at rest in the pile is never left out)
+        snaps = sorted(f for f in os.listdir(self.straight_dir) if f.startswith('snap_'))
+        snap = np.load(os.path.join(self.straight_dir, snaps[-1]))
+        loaded = np.zeros(len(snap['ids']), dtype=bool)
+        index = {int(b): k for k, b in enumerate(snap['ids'])}
+        for a, b, f in zip(snap['c_id1'], snap['c_id2'], snap['c_force']):
+            if np.linalg.norm(f) > 0:  # the floor wall is not among the grains
+                loaded[[index[int(k)] for k in (a, b) if int(k) in index]] = True
+        flying = ~snap['fixed'] & ~loaded
+        self.assertEqual(saved['n_pile_grains'], 60 - flying.sum())
+        self.assertLessEqual(flying.sum(), 3)
+        self.assertTrue((np.linalg.norm(snap['vel'][flying], axis=1) > 0.01).all())
         self.assertTrue(math.isfinite(saved['slope_deg']) and math.isfinite(saved['p_center_Pa']))
         # grains still moving or resting on the wall between paving grains are not floor load
         self.assertTrue(0 < saved['floor_load_over_weight'] <= 1.05)

@@ -93,6 +93,40 @@ class TestLocalSolver(unittest.TestCase):
             self.assertLess(np.abs(r - rs).max(), 1e-8)
 
 
+class TestSphereFastPath(unittest.TestCase):
+    """The compact sphere-contact sweep (sphereFastPath) and the general 3×3 path are the same
+    Gauss–Seidel: from the same state, one step gives the same impulses and velocities."""
+
+    def one_step(self, fast):
+        O.loadTmp('fastpath')
+        cd = yadecd.integrator()
+        cd.sphereFastPath = fast
+        O.step()
+        return (np.array([list(i.phys.impulse) for i in O.interactions]),
+                np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies]), cd.iterations)
+
+    def test_same_step_both_paths(self):
+        scenes.random_loose_packing(n=20, tolerance=1e-12, maxIter=100000)
+        O.run(250, True)  # landing and rolling: sticking, sliding and open contacts
+        O.saveTmp('fastpath')
+        r_fast, v_fast, it_fast = self.one_step(True)
+        r_gen, v_gen, it_gen = self.one_step(False)
+        self.assertGreater(len(r_fast), 10)
+        self.assertLess(np.abs(r_fast - r_gen).max(), 1e-9 * np.abs(r_gen).max())
+        self.assertLess(np.abs(v_fast - v_gen).max(), 1e-9 * max(np.abs(v_gen).max(), 1e-3))
+        self.assertLess(abs(it_fast - it_gen), 0.05 * it_gen + 2)
+
+    def test_blocked_dofs_take_the_general_path(self):
+        """A sphere with blocked rotations is not isotropic: the general path must give the
+        exact sliding result (no rolling) of a block on a plane."""
+        sc = scenes.sphere_on_plane(math.radians(30), 0.2)
+        O.bodies[sc['sphere']].state.blockedDOFs = 'XYZ'
+        O.run(100, True)
+        g, th = 9.81, math.radians(30)
+        expected = g * (math.sin(th) - 0.2 * math.cos(th)) * O.time  # sliding block
+        self.assertAlmostEqual(O.bodies[sc['sphere']].state.vel[0] / expected, 1.0, delta=1e-10)
+
+
 @unittest.skipIf(sn is None, 'python3-siconos missing')
 class TestAgainstSiconos(unittest.TestCase):
     """A whole step's frictional contact problem, exported by the engine (``problem()``), solved

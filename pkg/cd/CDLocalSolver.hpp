@@ -85,6 +85,24 @@ namespace cd {
 		return rn > 0 ? ContactStatus::Sliding : ContactStatus::Open;
 	}
 
+	/*! The same local problem when W = diag(d_N, d_T, d_T) (sphere contacts, isotropic bodies):
+	 *  every branch closed-form, as in solveLocal's decoupled case. */
+	inline ContactStatus solveLocalDiagonal(const Vector3r& d, const Vector3r& b, Real mu, Vector3r& r)
+	{
+		if (!(b[0] < 0)) { // a NaN offset gives no impulse either: the NaN is reported by its body, not spread
+			r.setZero();
+			return ContactStatus::Open;
+		}
+		const Real rn = -b[0] / d[0], r1 = -b[1] / d[1], r2 = -b[2] / d[2];
+		if (r1 * r1 + r2 * r2 <= mu * mu * rn * rn) {
+			r = Vector3r(rn, r1, r2);
+			return ContactStatus::Sticking;
+		}
+		const Real s = mu * rn / math::sqrt(b[1] * b[1] + b[2] * b[2]);
+		r            = Vector3r(rn, -s * b[1], -s * b[2]);
+		return ContactStatus::Sliding;
+	}
+
 	/*! Same, computing W⁻¹ itself (callers that solve the same W repeatedly pass it in). */
 	inline ContactStatus solveLocal(const Matrix3r& W, const Vector3r& b, Real mu, Vector3r& r) { return solveLocal(W, W.inverse(), b, mu, r); }
 

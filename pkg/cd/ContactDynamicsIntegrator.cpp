@@ -232,6 +232,11 @@ void ContactDynamicsIntegrator::checkScene()
 			}
 			const Matrix3r R = s.ori.toRotationMatrix();
 			sb.invI          = R * invIbody.asDiagonal() * R.transpose();
+			if (invIbody[0] == invIbody[1] && invIbody[1] == invIbody[2] && !(s.blockedDOFs & State::DOF_ALL)) {
+				sb.invI     = invIbody[0] * Matrix3r::Identity(); // exact, no rotation round-off
+				br.isoInvI  = invIbody[0];
+				br.isoInvM  = sb.invM[0];
+			}
 			for (int k = 0; k < 3; ++k)
 				if (s.blockedDOFs & State::axisDOF(k, true)) {
 					sb.invI.row(k).setZero();
@@ -369,6 +374,7 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 {
 	const Real h = scene->dt;
 	qNorm        = 0;
+	hot.resize(contacts.size());
 	for (SolverContact& c : contacts) {
 		const SolverBody& b1 = bodies[c.b1];
 		const SolverBody& b2 = bodies[c.b2];
@@ -392,6 +398,7 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 		c.Wlaw    = c.A.asDiagonal() * c.W;
 		c.WlawInv = c.Wlaw.inverse();
 		c.r    = c.frame * phys->impulse; // warm start, re-expressed in the new frame
+		buildSphereContact(&c - contacts.data());
 		// residual scale: free local velocities of the contacts that would close without an
 		// impulse (q_N < 0); far gap contacts, whose offsets 2 g_m/h are large, do not dilute it
 		const Vector3r q = c.A.cwiseProduct(localVelocity(c) + c.s);
@@ -405,6 +412,96 @@ Vector3r ContactDynamicsIntegrator::localVelocity(const SolverContact& c) const
 	const SolverBody& b1 = bodies[c.b1];
 	const SolverBody& b2 = bodies[c.b2];
 	return c.frame * ((b2.v + b2.w.cross(c.c2)) - (b1.v + b1.w.cross(c.c1)));
+}
+
+// The hot copy of contact k, when its geometry and bodies allow (see SphereContact).
+void ContactDynamicsIntegrator::buildSphereContact(size_t k)
+{
+	const SolverContact& c = contacts[k];
+	SphereContact&       h = hot[k];
+	h.fast                 = false;
+	if (!sphereFastPath) return;
+	Real lever[2], invM[2], invI[2];
+	for (int side = 0; side < 2; ++side) {
+		const int         id = side ? c.b2 : c.b1;
+		const BodyRecord& br = records[id];
+		const Vector3r&   cb = side ? c.c2 : c.c1;
+		const Vector3r    n  = c.frame.row(0);
+		lever[side]          = cb.dot(n);
+		if (br.dynamic) {
+			if (br.isoInvM < 0 || (cb - lever[side] * n).squaredNorm() > 1e-20 * cb.squaredNorm()) return;
+			invM[side] = br.isoInvM;
+			invI[side] = br.isoInvI;
+		} else {
+			if (bodies[id].w != Vector3r::Zero()) return; // a rotating obstacle: general path
+			invM[side] = invI[side] = 0;
+		}
+	}
+	h.fast = true;
+	h.n    = c.frame.row(0);
+	h.t1   = c.frame.row(1);
+	h.t2   = c.frame.row(2);
+	h.l1 = lever[0], h.l2 = lever[1];
+	h.m1 = invM[0], h.m2 = invM[1];
+	h.k1 = invI[0] * lever[0], h.k2 = invI[1] * lever[1];
+	const Real wn = h.m1 + h.m2, wt = wn + h.l1 * h.k1 + h.l2 * h.k2;
+	h.Wd   = c.A.cwiseProduct(Vector3r(wn, wt, wt));
+	h.A    = c.A;
+	h.bias = c.A.cwiseProduct(c.s);
+	h.r    = c.r;
+	h.mu   = c.mu;
+	h.wnn  = wn;
+	h.b1 = c.b1, h.b2 = c.b2;
+	h.status = c.status;
+}
+
+void ContactDynamicsIntegrator::syncHotContacts()
+{
+	for (size_t k = 0; k < contacts.size(); ++k)
+		if (hot[k].fast) {
+			contacts[k].r      = hot[k].r;
+			contacts[k].status = hot[k].status;
+		}
+}
+
+// One Gauss–Seidel update of a SphereContact; returns the impulse change. With c_b = l_b n the
+// rotation terms are l_b (w_b × n), whose local components are (0, w_b·t2, −w_b·t1), and the
+// impulse's moment about a centre is l_b (n × P) = l_b (Δr_1 t2 − Δr_2 t1).
+Vector3r ContactDynamicsIntegrator::updateSphereContact(SphereContact& c, Real omega)
+{
+	SolverBody&    B1 = bodies[c.b1];
+	SolverBody&    B2 = bodies[c.b2];
+	const Vector3r dv = B2.v - B1.v;
+	const Vector3r om = c.l2 * B2.w - c.l1 * B1.w;
+	const Vector3r U(c.n.dot(dv), c.t1.dot(dv) + om.dot(c.t2), c.t2.dot(dv) - om.dot(c.t1));
+	const Vector3r b = c.A.cwiseProduct(U) - c.Wd.cwiseProduct(c.r) + c.bias;
+	Vector3r       r;
+	c.status = int(cd::solveLocalDiagonal(c.Wd, b, c.mu, r));
+	if (omega != 1 && c.status != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + omega * (r - c.r), c.mu);
+	const Vector3r dr = r - c.r;
+	const Vector3r P  = dr[0] * c.n + dr[1] * c.t1 + dr[2] * c.t2;
+	const Vector3r x  = dr[1] * c.t2 - dr[2] * c.t1;
+	B2.v += c.m2 * P;
+	B2.w += c.k2 * x;
+	B1.v -= c.m1 * P;
+	B1.w -= c.k1 * x;
+	c.r = r;
+	return dr;
+}
+
+// One Gauss–Seidel update of any contact: its local velocity without its own impulse,
+// b = U − W r, the exact local solve of Ũ = A(W r + b + s), the change applied to both bodies.
+Vector3r ContactDynamicsIntegrator::updateGeneralContact(SolverContact& c, Real omega)
+{
+	const Vector3r U = localVelocity(c);
+	const Vector3r b = c.A.cwiseProduct(U - c.W * c.r + c.s);
+	Vector3r       r = c.r;
+	c.status         = int(cd::solveLocal(c.Wlaw, c.WlawInv, b, c.mu, r));
+	if (omega != 1 && c.status != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + omega * (r - c.r), c.mu);
+	const Vector3r dr = r - c.r;
+	applyImpulse(c, dr);
+	c.r = r;
+	return dr;
 }
 
 void ContactDynamicsIntegrator::applyImpulse(const SolverContact& c, const Vector3r& dr)
@@ -459,17 +556,20 @@ void ContactDynamicsIntegrator::solveImpulses()
 		const bool up  = sweepOrder == 3 ? false : (sweepOrder == 2 ? it % 2 == 1 : true);
 		const long nc  = long(contacts.size());
 		for (long k = 0; k < nc; ++k) {
-			SolverContact& c = contacts[up ? k : nc - 1 - k];
-			const Vector3r U = localVelocity(c);
-			const Vector3r b = c.A.cwiseProduct(U - c.W * c.r + c.s);
-			Vector3r       r = c.r;
-			int            st = int(cd::solveLocal(c.Wlaw, c.WlawInv, b, c.mu, r));
-			if (omega != 1 && st != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + omega * (r - c.r), c.mu);
-			if (st != c.status) ++nStatusChanges;
-			c.status = st;
-			applyImpulse(c, r - c.r);
-			change += (r - c.r).squaredNorm() * c.W(0, 0) * c.W(0, 0);
-			c.r = r;
+			const long idx    = up ? k : nc - 1 - k;
+			const int  before = hot[idx].fast ? hot[idx].status : contacts[idx].status;
+			Vector3r   dr;
+			Real       wnn;
+			if (hot[idx].fast) {
+				dr  = updateSphereContact(hot[idx], omega);
+				wnn = hot[idx].wnn;
+				if (hot[idx].status != before) ++nStatusChanges;
+			} else {
+				dr  = updateGeneralContact(contacts[idx], omega);
+				wnn = contacts[idx].W(0, 0);
+				if (contacts[idx].status != before) ++nStatusChanges;
+			}
+			change += dr.squaredNorm() * wnn * wnn;
 		}
 		iterations = it;
 		// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
@@ -485,6 +585,7 @@ void ContactDynamicsIntegrator::solveImpulses()
 				omega = 1;
 		}
 		if (it == maxIter || ((quiet || recordResidual) && it % checkEvery == 0)) {
+			syncHotContacts();
 			residual = computeResidual();
 			if (recordResidual) residualHistory.push_back(residual);
 			if (residual <= tolerance) {

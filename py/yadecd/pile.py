@@ -113,6 +113,33 @@ def build_scene(p):
     return len(O.bodies) - 1
 
 
+def scene_from_snapshot(path, **overrides):
+    """Rebuild a pile scene from a snapshot ``.npz`` (positions, radii, velocities, fixed
+    flags; the run's parameters from the ``run.json`` beside it when present, ``overrides``
+    on top). Angular velocities and impulses are not in snapshots: they restart at zero.
+    Returns the parameter dict."""
+    import json
+    p = dict(DEFAULTS)
+    run_json = os.path.join(os.path.dirname(os.path.abspath(path)), 'run.json')
+    if os.path.exists(run_json):
+        with open(run_json) as f:
+            p.update({k: v for k, v in json.load(f).items() if k in DEFAULTS})
+    p.update(overrides)
+    snap = np.load(path)
+    O.reset()
+    mat = material(p['mu'], p['rho'])
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    for x, r, v, fixed in zip(snap['pos'], snap['radius'], snap['vel'], snap['fixed']):
+        b = utils.sphere(tuple(x), float(r), fixed=bool(fixed), material=mat)
+        b.state.vel = Vector3(*v)
+        O.bodies.append(b)
+    O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
+                        warnUnconverged=False)
+    O.dt = p['dt']
+    O.time = float(snap['time'])
+    return p
+
+
 # ----------------------------------------------------------------------------- creation rule
 
 def creation_height(x, y, r, centres, radii):

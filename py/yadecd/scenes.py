@@ -12,7 +12,7 @@ from yade.wrapper import FrictMat
 from . import engines
 
 __all__ = ['material', 'sphere_on_plane', 'column', 'tetrahedron', 'binary_collision',
-           'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing']
+           'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing', 'fcc_block']
 
 
 def material(mu, density=1000.0, label=None):
@@ -149,6 +149,29 @@ def random_loose_packing(n=30, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, **opt
         else:
             z += 2 * r
     ids = [O.bodies.append(utils.sphere(p, s, material=mat)) for p, s in placed]
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'ids': ids}
+
+
+def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, **opts):
+    """A block of about ``n_target`` equal spheres on a face-centred cubic lattice resting on the
+    wall z=0, each touching its 12 lattice neighbours (6 contacts per sphere): a dense,
+    hyperstatic contact network of any size, built instantly; the benchmark packings.
+    Returns ``{'ids': [...]}``."""
+    O.reset()
+    mat = material(mu)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    a = 2 * math.sqrt(2) * r  # cube edge of the FCC cell whose nearest neighbours are 2r apart
+    side = max(1, round((n_target / 4) ** (1 / 3)))
+    basis = ((0, 0, 0), (0.5, 0.5, 0), (0.5, 0, 0.5), (0, 0.5, 0.5))
+    ids = []
+    for i in range(side):
+        for j in range(side):
+            for k in range(side):
+                for bx, by, bz in basis:
+                    c = (r + a * (i + bx), r + a * (j + by), r + a * (k + bz))
+                    ids.append(O.bodies.append(utils.sphere(c, r, material=mat)))
     O.engines = engines(gravity=(0, 0, -9.81), **opts)
     O.dt = dt
     return {'ids': ids}

@@ -1,0 +1,159 @@
+"""Solver benchmark harness (issue 6): prints and saves (CSV) per-contact Gauss–Seidel cost of
+the CD engine and of Siconos' NSGS on the same problems, and where a step's time goes.
+
+    scripts/yade -n -x scripts/bench/solver_bench.py [--contacts 1e3,1e4,1e5] [--snapshot RUN/snap_0008.000.npz]
+                                                     [--out docs/data/solver_bench.csv] [--quick]
+
+Measurements (one run, one machine: compare rows of the same run, as ratios):
+- ``sweep``: ns per contact per sweep on an FCC block of about N contacts (the engine with its
+  sphere fast path, and with ``sphereFastPath=False``), as the difference
+  of two solves of K1 and K2 forced sweeps (tolerance unreachable) divided by (K2−K1)·contacts,
+  so set-up, warm start and residual checks cancel. The same exported problem solved by
+  Siconos NSGS with the same two sweep counts gives its figure the same way.
+- ``stage``: where the time of an ordinary step goes (collider, InteractionLoop = geometry and
+  physics functors, and the integrator's stages), at the default tolerance, on the block and,
+  with ``--snapshot``, on a pile state rebuilt from a pile run's snapshot (warm-started steps).
+Each row records machine, threads, commit and date.
+"""
+import argparse
+import csv
+import datetime
+import os
+import platform
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from yade import O
+import yadecd
+from yadecd import scenes, fclib, pile
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+parser.add_argument('--contacts', default='1e3,1e4,1e5', help='target contact counts of the FCC blocks')
+parser.add_argument('--snapshot', default='', help='a pile snapshot .npz for the per-stage breakdown on a pile state')
+parser.add_argument('--pile-steps', type=int, default=20, help='steps timed on the pile state')
+parser.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'solver_bench.csv'))
+parser.add_argument('--quick', action='store_true', help='fewer sweeps (a smoke run)')
+parser.add_argument('--no-siconos', action='store_true')
+args = parser.parse_args(sys.argv[1:])
+
+K1, K2 = (5, 15) if args.quick else (20, 120)
+
+
+def machine():
+    model = platform.processor() or platform.machine()
+    try:
+        with open('/proc/cpuinfo') as f:
+            model = next(l.split(':', 1)[1].strip() for l in f if l.startswith('model name'))
+    except (OSError, StopIteration):
+        pass
+    return '%s, %d cores' % (model, os.cpu_count())
+
+
+def commit():
+    try:
+        return subprocess.run(['git', '-C', REPO, 'rev-parse', '--short', 'HEAD'], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return ''
+
+
+COMMON = dict(machine=machine(), threads=O.numThreads, commit=commit(), date=datetime.date.today().isoformat())
+rows = []
+
+
+def record(**row):
+    row = dict(COMMON, **row)
+    rows.append(row)
+    print('  '.join('%s=%s' % (k, ('%.4g' % v) if isinstance(v, float) else v) for k, v in row.items() if k not in COMMON), flush=True)
+
+
+def stage_times(cd):
+    """ns per stage of the integrator since the last reset, from its timingDeltas."""
+    return {label: ns for label, ns, count in cd.timingDeltas.data}
+
+
+def solve_time(cd, sweeps):
+    """Seconds the integrator spent in solveImpulses during one step forced to ``sweeps``."""
+    cd.tolerance, cd.maxIter = 1e-300, sweeps
+    cd.timingDeltas.reset()
+    O.step()
+    assert cd.iterations == sweeps
+    return stage_times(cd)['solveImpulses'] * 1e-9
+
+
+def per_sweep(run):
+    """(run(K2) − run(K1))/(K2 − K1), each the best of three."""
+    t1 = min(run(K1) for _ in range(3))
+    t2 = min(run(K2) for _ in range(3))
+    return (t2 - t1) / (K2 - K1)
+
+
+def siconos_time(pb, sweeps):
+    s = fclib.solve_siconos(pb['W'], pb['q'], pb['mu'], tol=1e-300, max_iter=sweeps)
+    return s['seconds']
+
+
+def breakdown(scene, steps):
+    """Mean wall time per step of each engine and integrator stage over ``steps`` steps."""
+    cd = yadecd.integrator()
+    cd.tolerance, cd.maxIter = tol, maxit
+    for e in O.engines:
+        e.execTime = 0
+    cd.timingDeltas.reset()
+    sweeps = contacts = 0
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        O.step()
+        sweeps += cd.iterations
+        contacts += cd.nContacts
+    wall = (time.perf_counter() - t0) / steps
+    parts = {e.__class__.__name__: e.execTime * 1e-9 / steps for e in O.engines}
+    for label, ns in stage_times(cd).items():
+        parts['CD.' + label] = ns * 1e-9 / steps
+    record(kind='stage', scene=scene, bodies=len(O.bodies), contacts=contacts // steps, method='CD',
+           sweeps=sweeps / steps, step_ms=wall * 1e3,
+           **{'ms_' + k: v * 1e3 for k, v in parts.items() if v > 0})
+
+
+O.timingEnabled = True
+for target in [int(float(x)) for x in args.contacts.split(',') if x]:
+    scenes.fcc_block(target / 6.2, warnUnconverged=False)
+    cd = yadecd.integrator()
+    tol, maxit = cd.tolerance, cd.maxIter
+    O.step()  # contacts appear; warm start from here on
+    n = cd.nContacts
+    cd.sphereFastPath = False
+    tg = per_sweep(lambda k: solve_time(cd, k))
+    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD general path', ns_per_contact_sweep=tg / n * 1e9)
+    cd.sphereFastPath = True
+    t = per_sweep(lambda k: solve_time(cd, k))
+    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD', ns_per_contact_sweep=t / n * 1e9)
+    print('  general/fast path time per contact-sweep: %.2f' % (tg / t))
+    if not args.no_siconos:
+        pb = fclib.local_problem(cd)
+        ts = per_sweep(lambda k: siconos_time(pb, k))
+        record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='Siconos NSGS', ns_per_contact_sweep=ts / n * 1e9)
+        print('  Siconos/CD time per contact-sweep: %.2f' % (ts / t))
+    breakdown('fcc_block', 3 if args.quick else 10)
+
+if args.snapshot:
+    pile.scene_from_snapshot(args.snapshot)
+    O.timingEnabled = True
+    cd = yadecd.integrator()
+    tol, maxit = cd.tolerance, cd.maxIter
+    O.run(20, True)  # rebuild contacts and warm start (snapshots hold no impulses)
+    breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps)
+
+os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+keys = []
+for r in rows:
+    keys += [k for k in r if k not in keys]
+with open(args.out, 'w', newline='') as f:
+    w = csv.DictWriter(f, fieldnames=keys)
+    w.writeheader()
+    w.writerows(rows)
+print('wrote', args.out)
