@@ -1,8 +1,8 @@
 """How much do the pile's force analyses depend on the Gauss–Seidel tolerance?
 
-    scripts/yade -n -x scripts/pile_tolerance.py RUN_DIR [--tight 1e-6] [--out FILE]
+    scripts/yade -n -x scripts/pile_tolerance.py RUN_DIR [--tolerance 1e-2] [--tight 1e-6] [--out FILE]
 
-Loads the run's checkpoint, re-solves one step with the run's own tolerance and with a much
+Loads the run's checkpoint, re-solves one step with the run's own tolerance (or ``--tolerance``) and with a much
 tighter one (from the same saved state, same warm start), and compares the ground-pressure
 profile (per ring) and band force densities (vertical and horizontal cuts through the pile).
 Writes RUN_DIR/tolerance_effect.json and prints the relative changes: where they exceed the
@@ -21,6 +21,7 @@ from yadecd import pile, pile_analysis as pa
 
 ap = argparse.ArgumentParser()
 ap.add_argument('run_dir')
+ap.add_argument('--tolerance', type=float, default=None, help="the tolerance to judge (default: the run's)")
 ap.add_argument('--tight', type=float, default=1e-6)
 ap.add_argument('--max-iter', type=int, default=200000)
 ap.add_argument('--out', default=None)
@@ -43,7 +44,7 @@ def solve(tol):
 
 results = {}
 snaps = {}
-for name, tol in (('run', p['tolerance']), ('tight', a.tight)):
+for name, tol in (('run', a.tolerance or p['tolerance']), ('tight', a.tight)):
     snaps[name], results[name] = solve(tol)
     print('%-5s tolerance %.0e: %d sweeps, residual %.2e, %.1f s' % (name, tol, results[name]['sweeps'], results[name]['residual'], results[name]['wall_s']))
 

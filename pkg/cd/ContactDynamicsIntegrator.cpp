@@ -464,17 +464,24 @@ void ContactDynamicsIntegrator::syncHotContacts()
 		}
 }
 
-// One Gauss–Seidel update of a SphereContact; returns the impulse change. With c_b = l_b n the
-// rotation terms are l_b (w_b × n), whose local components are (0, w_b·t2, −w_b·t1), and the
-// impulse's moment about a centre is l_b (n × P) = l_b (Δr_1 t2 − Δr_2 t1).
+// Local velocity U of a SphereContact. With c_b = l_b n the rotation terms are l_b (w_b × n),
+// whose local components are (0, w_b·t2, −w_b·t1).
+Vector3r ContactDynamicsIntegrator::sphereVelocity(const SphereContact& c) const
+{
+	const SolverBody& B1 = bodies[c.b1];
+	const SolverBody& B2 = bodies[c.b2];
+	const Vector3r    dv = B2.v - B1.v;
+	const Vector3r    om = c.l2 * B2.w - c.l1 * B1.w;
+	return Vector3r(c.n.dot(dv), c.t1.dot(dv) + om.dot(c.t2), c.t2.dot(dv) - om.dot(c.t1));
+}
+
+// One Gauss–Seidel update of a SphereContact; returns the impulse change. The impulse's
+// moment about a centre is l_b (n × P) = l_b (Δr_1 t2 − Δr_2 t1).
 Vector3r ContactDynamicsIntegrator::updateSphereContact(SphereContact& c, Real omega)
 {
 	SolverBody&    B1 = bodies[c.b1];
 	SolverBody&    B2 = bodies[c.b2];
-	const Vector3r dv = B2.v - B1.v;
-	const Vector3r om = c.l2 * B2.w - c.l1 * B1.w;
-	const Vector3r U(c.n.dot(dv), c.t1.dot(dv) + om.dot(c.t2), c.t2.dot(dv) - om.dot(c.t1));
-	const Vector3r b = c.A.cwiseProduct(U) - c.Wd.cwiseProduct(c.r) + c.bias;
+	const Vector3r b  = c.A.cwiseProduct(sphereVelocity(c)) - c.Wd.cwiseProduct(c.r) + c.bias;
 	Vector3r       r;
 	c.status = int(cd::solveLocalDiagonal(c.Wd, b, c.mu, r));
 	if (omega != 1 && c.status != int(cd::ContactStatus::Open)) r = cd::projectOnCone(c.r + omega * (r - c.r), c.mu);
@@ -520,12 +527,23 @@ Real ContactDynamicsIntegrator::computeResidual()
 {
 	Real sum = 0;
 	nSticking = nSliding = 0;
-	for (const SolverContact& c : contacts) {
-		const Vector3r Ulaw = c.A.cwiseProduct(localVelocity(c) + c.s);
+	for (size_t k = 0; k < contacts.size(); ++k) {
+		Vector3r r, Ulaw;
+		Real     rho, mu;
+		int      status;
+		if (hot[k].fast) {
+			const SphereContact& c = hot[k];
+			Ulaw = c.A.cwiseProduct(sphereVelocity(c)) + c.bias;
+			r = c.r, rho = 1 / c.Wd[0], mu = c.mu, status = c.status;
+		} else {
+			const SolverContact& c = contacts[k];
+			Ulaw = c.A.cwiseProduct(localVelocity(c) + c.s);
+			r = c.r, rho = 1 / c.Wlaw(0, 0), mu = c.mu, status = c.status;
+		}
 		// ρ for the law's own block: the law sees Ũ = A U, so scale as 1/Wlaw_NN
-		sum += cd::naturalMapResidual(c.r, Ulaw, c.mu, 1 / c.Wlaw(0, 0)).squaredNorm();
-		if (c.status == int(cd::ContactStatus::Sticking)) ++nSticking;
-		if (c.status == int(cd::ContactStatus::Sliding)) ++nSliding;
+		sum += cd::naturalMapResidual(r, Ulaw, mu, rho).squaredNorm();
+		if (status == int(cd::ContactStatus::Sticking)) ++nSticking;
+		if (status == int(cd::ContactStatus::Sliding)) ++nSliding;
 	}
 	const Real scale = qNorm > 0 ? qNorm : Real(1);
 	return math::sqrt(sum) / scale;
@@ -585,7 +603,6 @@ void ContactDynamicsIntegrator::solveImpulses()
 				omega = 1;
 		}
 		if (it == maxIter || ((quiet || recordResidual) && it % checkEvery == 0)) {
-			syncHotContacts();
 			residual = computeResidual();
 			if (recordResidual) residualHistory.push_back(residual);
 			if (residual <= tolerance) {
@@ -594,6 +611,7 @@ void ContactDynamicsIntegrator::solveImpulses()
 			}
 		}
 	}
+	syncHotContacts();
 	if (!converged) {
 		++nUnconverged;
 		if (warnUnconverged)
@@ -633,22 +651,37 @@ void ContactDynamicsIntegrator::correctPositions()
 	const Real h          = scene->dt;
 	projectionIterations  = 0;
 	maxCorrectedOverlap   = 0;
-	auto violation = [&](const SolverContact& c) {
-		const Real gf = c.gapM + 0.5 * h * (localVelocity(c)[0] + localPseudoVelocity(c)[0]);
-		return (-c.allowance - gf) / c.refR; // > 0: overlap beyond the allowance
-	};
-	for (const SolverContact& c : contacts)
-		maxCorrectedOverlap = math::max(maxCorrectedOverlap, violation(c));
+	// the velocity part of the end-of-step gap is fixed now: g_m + h/2 U_f,N
+	const long        nc = long(contacts.size());
+	std::vector<Real> gapF(nc);
+	for (long k = 0; k < nc; ++k) {
+		const SolverContact& c = contacts[k];
+		gapF[k]                = c.gapM + 0.5 * h * localVelocity(c)[0];
+		maxCorrectedOverlap    = math::max(maxCorrectedOverlap, (-c.allowance - gapF[k]) / c.refR);
+	}
 	if (maxCorrectedOverlap <= positionTolerance) return;
-	const long nc = long(contacts.size());
+	// normal pseudo-velocity of a contact; for a SphereContact the rotations never enter it
+	// (the lever arm is along n) and a normal pseudo-impulse never makes them
+	auto pseudoNormal = [&](long k) {
+		const SphereContact& f = hot[k];
+		if (f.fast) return f.n.dot(records[f.b2].pv - records[f.b1].pv);
+		return localPseudoVelocity(contacts[k])[0];
+	};
 	for (int it = 1; it <= maxProjectionIter; ++it) {
 		Real worst = 0;
-		for (long k = 0; k < nc; ++k) {
-			SolverContact& c = contacts[it % 2 == 1 ? k : nc - 1 - k]; // alternating, as the velocity sweeps
-			const Real v    = violation(c);
-			worst           = math::max(worst, v);
-			const Real Pnew = math::max(Real(0), c.P + (2 / h) * v * c.refR / c.W(0, 0));
-			applyPseudoImpulse(c, Pnew - c.P);
+		for (long j = 0; j < nc; ++j) {
+			const long     k    = it % 2 == 1 ? j : nc - 1 - j; // alternating, as the velocity sweeps
+			SolverContact& c    = contacts[k];
+			const Real     v    = (-c.allowance - gapF[k] - 0.5 * h * pseudoNormal(k)) / c.refR; // > 0: overlap beyond the allowance
+			worst               = math::max(worst, v);
+			const Real     Pnew = math::max(Real(0), c.P + (2 / h) * v * c.refR / c.W(0, 0));
+			if (hot[k].fast) {
+				const SphereContact& f  = hot[k];
+				const Vector3r       dP = (Pnew - c.P) * f.n;
+				records[f.b2].pv += f.m2 * dP;
+				records[f.b1].pv -= f.m1 * dP;
+			} else
+				applyPseudoImpulse(c, Pnew - c.P);
 			c.P = Pnew;
 		}
 		projectionIterations = it;

@@ -141,6 +141,7 @@ private:
 	void     applyImpulse(const SolverContact& c, const Vector3r& dr);
 	void     buildSphereContact(size_t k);
 	Vector3r updateSphereContact(SphereContact& c, Real omega);
+	Vector3r sphereVelocity(const SphereContact& c) const;
 	Vector3r updateGeneralContact(SolverContact& c, Real omega);
 	void     syncHotContacts();
 	void     applyPseudoImpulse(const SolverContact& c, Real dP);

@@ -117,7 +117,7 @@ def scene_from_snapshot(path, **overrides):
     """Rebuild a pile scene from a snapshot ``.npz`` (positions, radii, velocities, fixed
     flags; the run's parameters from the ``run.json`` beside it when present, ``overrides``
     on top). Angular velocities and impulses are not in snapshots: they restart at zero.
-    Returns the parameter dict."""
+    Returns the parameter dict (the snapshot time is in its ``time``; O.time restarts at 0)."""
     import json
     p = dict(DEFAULTS)
     run_json = os.path.join(os.path.dirname(os.path.abspath(path)), 'run.json')
@@ -136,7 +136,6 @@ def scene_from_snapshot(path, **overrides):
     O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
                         warnUnconverged=False)
     O.dt = p['dt']
-    O.time = float(snap['time'])
     return p
 
 

@@ -62,12 +62,16 @@ def commit():
 
 
 COMMON = dict(machine=machine(), threads=O.numThreads, commit=commit(), date=datetime.date.today().isoformat())
-rows = []
+FIELDS = list(COMMON) + ['kind', 'scene', 'bodies', 'contacts', 'method', 'sweeps', 'quantity', 'value', 'unit']
+os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+with open(args.out, 'w', newline='') as f:  # rows are appended as they come: a crash loses nothing
+    csv.DictWriter(f, fieldnames=FIELDS).writeheader()
 
 
 def record(**row):
     row = dict(COMMON, **row)
-    rows.append(row)
+    with open(args.out, 'a', newline='') as f:
+        csv.DictWriter(f, fieldnames=FIELDS).writerow(row)
     print('  '.join('%s=%s' % (k, ('%.4g' % v) if isinstance(v, float) else v) for k, v in row.items() if k not in COMMON), flush=True)
 
 
@@ -97,7 +101,7 @@ def siconos_time(pb, sweeps):
     return s['seconds']
 
 
-def breakdown(scene, steps):
+def breakdown(scene, steps, method='CD'):
     """Mean wall time per step of each engine and integrator stage over ``steps`` steps."""
     cd = yadecd.integrator()
     cd.tolerance, cd.maxIter = tol, maxit
@@ -111,12 +115,14 @@ def breakdown(scene, steps):
         sweeps += cd.iterations
         contacts += cd.nContacts
     wall = (time.perf_counter() - t0) / steps
-    parts = {e.__class__.__name__: e.execTime * 1e-9 / steps for e in O.engines}
+    parts = {'step': wall}
+    parts.update({e.__class__.__name__: e.execTime * 1e-9 / steps for e in O.engines})
     for label, ns in stage_times(cd).items():
         parts['CD.' + label] = ns * 1e-9 / steps
-    record(kind='stage', scene=scene, bodies=len(O.bodies), contacts=contacts // steps, method='CD',
-           sweeps=sweeps / steps, step_ms=wall * 1e3,
-           **{'ms_' + k: v * 1e3 for k, v in parts.items() if v > 0})
+    for name, seconds in parts.items():
+        if seconds > 0:
+            record(kind='stage', scene=scene, bodies=len(O.bodies), contacts=contacts // steps, method=method,
+                   sweeps=sweeps / steps, quantity=name, value=seconds * 1e3, unit='ms/step')
 
 
 O.timingEnabled = True
@@ -128,15 +134,15 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     n = cd.nContacts
     cd.sphereFastPath = False
     tg = per_sweep(lambda k: solve_time(cd, k))
-    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD general path', ns_per_contact_sweep=tg / n * 1e9)
+    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD general path', quantity='time per contact-sweep', value=tg / n * 1e9, unit='ns')
     cd.sphereFastPath = True
     t = per_sweep(lambda k: solve_time(cd, k))
-    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD', ns_per_contact_sweep=t / n * 1e9)
+    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD', quantity='time per contact-sweep', value=t / n * 1e9, unit='ns')
     print('  general/fast path time per contact-sweep: %.2f' % (tg / t))
     if not args.no_siconos:
         pb = fclib.local_problem(cd)
         ts = per_sweep(lambda k: siconos_time(pb, k))
-        record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='Siconos NSGS', ns_per_contact_sweep=ts / n * 1e9)
+        record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='Siconos NSGS', quantity='time per contact-sweep', value=ts / n * 1e9, unit='ns')
         print('  Siconos/CD time per contact-sweep: %.2f' % (ts / t))
     breakdown('fcc_block', 3 if args.quick else 10)
 
@@ -146,14 +152,11 @@ if args.snapshot:
     cd = yadecd.integrator()
     tol, maxit = cd.tolerance, cd.maxIter
     O.run(20, True)  # rebuild contacts and warm start (snapshots hold no impulses)
+    O.saveTmp('bench')
     breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps)
+    O.loadTmp('bench')  # the same steps again through the general path
+    O.timingEnabled = True
+    yadecd.integrator().sphereFastPath = False
+    breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps, method='CD general path')
 
-os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-keys = []
-for r in rows:
-    keys += [k for k in r if k not in keys]
-with open(args.out, 'w', newline='') as f:
-    w = csv.DictWriter(f, fieldnames=keys)
-    w.writeheader()
-    w.writerows(rows)
 print('wrote', args.out)

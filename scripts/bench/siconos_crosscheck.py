@@ -1,0 +1,94 @@
+"""Cross-check one step of a CD run against Siconos (issue 6, section 2).
+
+    scripts/yade -n -x scripts/bench/siconos_crosscheck.py [--snapshot RUN/snap_0008.000.npz | --fcc 1e4]
+                                                          [--tol 1e-6] [--out docs/data/siconos_crosscheck.csv]
+
+Takes a scene (a pile state rebuilt from a snapshot, or an FCC block), runs a few warm-up steps,
+then one step with the engine at ``--tol``. That step's frictional contact problem is written
+in FCLIB's HDF5 layout (``--fclib``), read back, and solved by Siconos' NSGS from zero and from
+the engine's previous-step impulses (the same warm start the engine had). Reported for both
+solutions, under one common definition (Siconos' relative natural-map error, ρ = 1, see
+``yadecd.fclib.residual``): the residual, sweeps and wall time to tolerance, and the agreement
+of impulses and velocities. Appends one CSV row per solver.
+"""
+import argparse
+import csv
+import datetime
+import os
+import sys
+import time
+
+import numpy as np
+
+from yade import O
+import yadecd
+from yadecd import scenes, fclib, pile
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+parser.add_argument('--snapshot', default='', help='pile snapshot .npz (default: an FCC block)')
+parser.add_argument('--fcc', type=float, default=1e4, help='contacts of the FCC block when no snapshot')
+parser.add_argument('--warmup', type=int, default=20, help='steps before the checked one')
+parser.add_argument('--tol', type=float, default=1e-6, help="engine tolerance (its own residual) for the checked step")
+parser.add_argument('--fclib', default='/tmp/yadecd_step.hdf5', help='where the FCLIB file of the step goes')
+parser.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'siconos_crosscheck.csv'))
+args = parser.parse_args(sys.argv[1:])
+
+if args.snapshot:
+    pile.scene_from_snapshot(args.snapshot)
+    scene = 'pile ' + os.path.basename(args.snapshot)
+else:
+    scenes.fcc_block(args.fcc / 6.2)
+    scene = 'fcc_block'
+cd = yadecd.integrator()
+cd.warnUnconverged = False
+O.timingEnabled = True
+O.run(args.warmup, True)
+warm = {(i.id1, i.id2): np.array(i.phys.impulse) for i in O.interactions if i.isReal}
+
+cd.tolerance, cd.maxIter = args.tol, 200000
+cd.timingDeltas.reset()
+O.step()
+t_engine = dict((l, ns) for l, ns, c in cd.timingDeltas.data)['solveImpulses'] * 1e-9
+pb = fclib.local_problem(cd)
+fclib.write(args.fclib, pb, title='YADE CD step', description='%s, step %d, %d contacts' % (scene, O.iter, len(pb['mu'])),
+            math_info='u = W r + q; r in C_mu, u + mu|u_T| e_N in C_mu*, orthogonal')
+back = fclib.read(args.fclib)
+W, q, mu = back['W'], back['q'], back['mu']
+res_engine = fclib.residual(W, q, mu, pb['r'])
+print('%s: %d contacts, engine: %d sweeps, %.3f s, own residual %.2e, common residual %.2e'
+      % (scene, len(mu), cd.iterations, t_engine, cd.residual, res_engine))
+
+# The engine's warm start of this step: last step's global impulses in this step's local frames
+# (n, t1, t2), built as the engine builds them; the geometry still holds this step's normals.
+ids = [(int(i), int(j)) for i, j in pb['ids']]
+r_warm = np.zeros(3 * len(ids))
+for a, pair in enumerate(ids):
+    if pair in warm:
+        n = np.array(O.interactions[pair[0], pair[1]].geom.normal)
+        t1 = np.cross(n, [1, 0, 0] if abs(n[0]) < 0.57 else [0, 1, 0])
+        t1 /= np.linalg.norm(t1)
+        r_warm[3 * a:3 * a + 3] = [warm[pair] @ n, warm[pair] @ t1, warm[pair] @ np.cross(n, t1)]
+
+rows = []
+common = dict(date=datetime.date.today().isoformat(), scene=scene, contacts=len(mu))
+rows.append(dict(common, solver='YADE CD (engine)', start='warm', sweeps=cd.iterations, seconds=t_engine,
+                 common_residual=res_engine, max_dr_rel=0.0, max_du_rel=0.0))
+for start, r0 in (('cold', None), ('warm', r_warm)):
+    s = fclib.solve_siconos(W, q, mu, tol=res_engine, max_iter=200000, r0=r0)
+    res = fclib.residual(W, q, mu, s['r'])
+    dr = np.abs(s['r'] - pb['r']).max() / np.abs(pb['r']).max()
+    du = np.abs(s['u'] - pb['u']).max() / max(np.abs(q).max(), 1e-300)
+    print('Siconos NSGS (%s start): info %d, %d sweeps, %.3f s, common residual %.2e; |Δr|/|r| %.1e, |Δu|/|q| %.1e'
+          % (start, s['info'], s['iterations'], s['seconds'], res, dr, du))
+    rows.append(dict(common, solver='Siconos NSGS', start=start, sweeps=s['iterations'], seconds=s['seconds'],
+                     common_residual=res, max_dr_rel=dr, max_du_rel=du))
+
+os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+new = not os.path.exists(args.out)
+with open(args.out, 'a', newline='') as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    if new:
+        w.writeheader()
+    w.writerows(rows)
+print('wrote', args.out, 'and', args.fclib)
