@@ -12,6 +12,10 @@ Protocol (defaults are the paper's; SI units inside, the paper's cm in comments)
   lowest height at which it rests, without overlap, on a grain met on that vertical (in flight
   or not), on the paving or on the plane (see :func:`creation_height`).
 
+``method='MD'`` runs the same protocol with YADE's soft contacts instead (linear spring–slider,
+Young's modulus ``young``, Cundall damping ``md_damping``, ``O.dt = md_safety·PWaveTimeStep()``):
+the CD-versus-MD comparison of a pile (``scripts/compare_pile.py``).
+
 A run directory holds ``run.json`` (the parameters), ``snap_<time>.npz`` snapshots (the data
 every analysis needs, see :func:`snapshot`), ``checkpoint.yade.gz`` + ``checkpoint.json`` (the
 state to ``resume`` from) and ``progress.csv``.
@@ -25,7 +29,7 @@ import time
 import numpy as np
 
 from yade import O, utils, Vector3
-from yade.wrapper import Sphere
+from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
 from . import engines
 from .scenes import material
@@ -51,6 +55,10 @@ DEFAULTS = dict(
     max_iter=2000,
     vtk=False,           # also export VTK files (ParaView) at snapshots
     stop_time=0.0,       # s; > 0: checkpoint and stop there (continue later with resume)
+    method='CD',         # 'CD', or 'MD': YADE's soft contacts (linear spring–slider) on the same protocol
+    young=1e7,           # Pa; MD only (contact stiffness kn = young·r)
+    md_safety=0.5,       # MD only: O.dt = md_safety·PWaveTimeStep() (replaces dt)
+    md_damping=0.2,      # MD only: Cundall's non-viscous damping, as YADE deposition scripts use
 )
 
 
@@ -107,10 +115,35 @@ def build_scene(p):
     floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
     for x, y, r in paving(rng, floor_radius, p['d_min'], p['d_max']):
         O.bodies.append(utils.sphere((x, y, r), r, fixed=True, material=mat, color=(0.5, 0.5, 0.5)))
-    O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
-                        warnUnconverged=False)
-    O.dt = p['dt']
+    set_engines(p)
     return len(O.bodies) - 1
+
+
+def set_engines(p):
+    """The run's engines and time step: the CD engine list, or (``method='MD'``) YADE's linear
+    soft-contact list with ``O.dt = md_safety·PWaveTimeStep()`` (then written back to p['dt'])."""
+    method = p.get('method', 'CD')
+    if method == 'CD':
+        O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
+                            warnUnconverged=False)
+        O.dt = p['dt']
+    elif method == 'MD':
+        from .compare import md_engines
+        for m in O.materials:
+            m.young = p['young']
+        O.engines = md_engines(gravity=(0, 0, -p['g']), law='linear', damping=p['md_damping'])
+        O.dt = p['md_safety'] * utils.PWaveTimeStep()
+        p['dt'] = O.dt
+    else:
+        raise ValueError("method must be 'CD' or 'MD', not %r" % (method,))
+
+
+def solver_stats():
+    """(contacts, sweeps, residual) of the last step; MD has no sweeps (0, 0.0)."""
+    e = O.engines[-1]
+    if isinstance(e, ContactDynamicsIntegrator):
+        return e.nContacts, e.iterations, e.residual
+    return O.interactions.countReal(), 0, 0.0
 
 
 def scene_from_snapshot(path, **overrides):
@@ -133,9 +166,7 @@ def scene_from_snapshot(path, **overrides):
         b = utils.sphere(tuple(x), float(r), fixed=bool(fixed), material=mat)
         b.state.vel = Vector3(*v)
         O.bodies.append(b)
-    O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
-                        warnUnconverged=False)
-    O.dt = p['dt']
+    set_engines(p)
     return p
 
 
@@ -291,7 +322,6 @@ def run(run_dir, resume=False, log=print, **overrides):
     t_feed = p['n_grains'] * period * p['dt']
     t_end = t_feed + p['relax']
     snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in done_snaps]
-    cd = O.engines[-1]
     wall0, sim0 = time.time(), O.time
     last_ck = last_log = time.time()
     progress = open(os.path.join(run_dir, 'progress.csv'), 'a')
@@ -322,11 +352,11 @@ def run(run_dir, resume=False, log=print, **overrides):
         if now - last_log > 10 or O.time >= t_stop - 0.5 * p['dt']:
             rate = (O.time - sim0) / max(now - wall0, 1e-9)
             eta = (t_end - O.time) / rate if rate > 0 else float('inf')
+            contacts, sweeps, residual = solver_stats()
             log('t=%7.3f s  grains %6d/%d  contacts %6d  sweeps %4d  residual %.1e  %.3f sim-s/s  ETA %s'
-                % (O.time, feeder.count, p['n_grains'], cd.nContacts, cd.iterations, cd.residual, rate,
+                % (O.time, feeder.count, p['n_grains'], contacts, sweeps, residual, rate,
                    time.strftime('%H:%M:%S', time.gmtime(eta)) if eta < 1e7 else '?'))
-            progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (O.time, feeder.count, cd.nContacts, cd.iterations,
-                                                           cd.residual, now - wall0))
+            progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (O.time, feeder.count, contacts, sweeps, residual, now - wall0))
             progress.flush()
             last_log = now
         if now - last_ck > p['checkpoint_every']:
@@ -335,7 +365,7 @@ def run(run_dir, resume=False, log=print, **overrides):
     save_checkpoint(run_dir, state())
     progress.close()
     p['wall_time_s'] = time.time() - wall0
-    p['unconverged_steps'] = cd.nUnconverged
+    p['unconverged_steps'] = getattr(O.engines[-1], 'nUnconverged', 0)
     with open(os.path.join(run_dir, 'run.json'), 'w') as f:
         json.dump(p, f, indent=1)
     return p
