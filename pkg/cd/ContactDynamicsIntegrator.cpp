@@ -57,7 +57,7 @@ void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 	if (!(alertSpeedFactor >= 1)) bad("alertSpeedFactor=" + std::to_string(alertSpeedFactor) + ": must be ≥ 1, or contacts closing within a step are missed.");
 	if (!(positionTolerance > 0)) bad("positionTolerance=" + std::to_string(positionTolerance) + ": must be a positive number.");
 	if (!(relaxation > 0 && relaxation < 2)) bad("relaxation=" + std::to_string(relaxation) + ": must lie in (0, 2).");
-	if (sweepOrder < 0 || sweepOrder > 3) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 0, 1, 2 or 3.");
+	if (sweepOrder < 0 || sweepOrder > 4) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 0, 1, 2, 3 or 4.");
 	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
 }
 
@@ -488,10 +488,14 @@ Vector3r ContactDynamicsIntegrator::updateSphereContact(SphereContact& c, Real o
 	const Vector3r dr = r - c.r;
 	const Vector3r P  = dr[0] * c.n + dr[1] * c.t1 + dr[2] * c.t2;
 	const Vector3r x  = dr[1] * c.t2 - dr[2] * c.t1;
-	B2.v += c.m2 * P;
-	B2.w += c.k2 * x;
-	B1.v -= c.m1 * P;
-	B1.w -= c.k1 * x;
+	if (c.m2 > 0) { // obstacles are never written (a coloured sweep shares them between threads)
+		B2.v += c.m2 * P;
+		B2.w += c.k2 * x;
+	}
+	if (c.m1 > 0) {
+		B1.v -= c.m1 * P;
+		B1.w -= c.k1 * x;
+	}
 	c.r = r;
 	return dr;
 }
@@ -516,10 +520,14 @@ void ContactDynamicsIntegrator::applyImpulse(const SolverContact& c, const Vecto
 	const Vector3r P  = c.frame.transpose() * dr; // on body 2; −P on body 1
 	SolverBody&    b1 = bodies[c.b1];
 	SolverBody&    b2 = bodies[c.b2];
-	b2.v += b2.invM.cwiseProduct(P);
-	b2.w += b2.invI * c.c2.cross(P);
-	b1.v -= b1.invM.cwiseProduct(P);
-	b1.w -= b1.invI * c.c1.cross(P);
+	if (records[c.b2].dynamic) { // obstacles are never written (see updateSphereContact)
+		b2.v += b2.invM.cwiseProduct(P);
+		b2.w += b2.invI * c.c2.cross(P);
+	}
+	if (records[c.b1].dynamic) {
+		b1.v -= b1.invM.cwiseProduct(P);
+		b1.w -= b1.invI * c.c1.cross(P);
+	}
 }
 
 // Relative residual: sqrt(Σ|e_α|²)/‖q‖, e_α the natural-map residual in velocity units.
@@ -549,6 +557,100 @@ Real ContactDynamicsIntegrator::computeResidual()
 	return math::sqrt(sum) / scale;
 }
 
+// One Gauss–Seidel update of contact idx through its path; returns (W_NN |Δr|)², counts a
+// status change in *changed.
+inline Real ContactDynamicsIntegrator::updateContact(long idx, Real omega, bool& changed)
+{
+	if (hot[idx].fast) {
+		SphereContact& c      = hot[idx];
+		const int      before = c.status;
+		const Real     d      = updateSphereContact(c, omega).squaredNorm() * c.wnn * c.wnn;
+		changed               = c.status != before;
+		return d;
+	}
+	SolverContact& c      = contacts[idx];
+	const int      before = c.status;
+	const Real     d      = updateGeneralContact(c, omega).squaredNorm() * c.W(0, 0) * c.W(0, 0);
+	changed               = c.status != before;
+	return d;
+}
+
+// A sequential sweep in the contacts' order (up) or the reverse.
+Real ContactDynamicsIntegrator::orderedSweep(Real omega, bool up)
+{
+	Real       change = 0;
+	const long nc     = long(contacts.size());
+	nStatusChanges    = 0;
+	for (long k = 0; k < nc; ++k) {
+		bool changed;
+		change += updateContact(up ? k : nc - 1 - k, omega, changed);
+		nStatusChanges += changed;
+	}
+	return change;
+}
+
+// Greedy colouring in the contacts' (height) order: the smallest colour not yet taken by a
+// contact of either dynamic body (obstacles never conflict: nothing writes them). Contacts of
+// one colour share no dynamic body, so their updates commute. Colours past 63 form one last
+// group swept sequentially.
+void ContactDynamicsIntegrator::colourContacts()
+{
+	constexpr int     maxColours = 64;
+	std::vector<uint64_t> taken(bodies.size(), 0);
+	std::vector<int>      colour(contacts.size());
+	std::vector<long>     count(maxColours + 1, 0);
+	for (size_t k = 0; k < contacts.size(); ++k) {
+		const int      b1 = contacts[k].b1, b2 = contacts[k].b2;
+		const bool     d1 = records[b1].dynamic, d2 = records[b2].dynamic;
+		const uint64_t used = (d1 ? taken[b1] : 0) | (d2 ? taken[b2] : 0);
+		const int      col  = (~used == 0) ? maxColours : __builtin_ctzll(~used);
+		if (col < maxColours) {
+			if (d1) taken[b1] |= uint64_t(1) << col;
+			if (d2) taken[b2] |= uint64_t(1) << col;
+		}
+		colour[k] = col;
+		++count[col];
+	}
+	colourStart.assign(maxColours + 2, 0);
+	for (int c = 0; c <= maxColours; ++c)
+		colourStart[c + 1] = colourStart[c] + count[c];
+	colourOrder.resize(contacts.size());
+	std::vector<long> next(colourStart.begin(), colourStart.end() - 1);
+	for (size_t k = 0; k < contacts.size(); ++k)
+		colourOrder[next[colour[k]]++] = long(k);
+	nColours = 0;
+	for (int c = 0; c <= maxColours; ++c)
+		if (count[c]) nColours = c + 1;
+	sweepChange.assign(contacts.size(), 0);
+	statusChanged.assign(contacts.size(), 0);
+}
+
+// A sweep colour by colour, the contacts of a colour updated in parallel. Every contact's
+// change is stored and summed afterwards in a fixed order: the result, bit for bit, does not
+// depend on the number of threads.
+Real ContactDynamicsIntegrator::colouredSweep(Real omega)
+{
+	const int last = int(colourStart.size()) - 2; // the sequential overflow group
+	for (int c = 0; c <= last; ++c) {
+		const long begin = colourStart[c], end = colourStart[c + 1];
+		const bool parallel = c < last && end - begin >= 512;
+#pragma omp parallel for schedule(static) if (parallel)
+		for (long j = begin; j < end; ++j) {
+			const long idx = colourOrder[j];
+			bool       changed;
+			sweepChange[idx]   = updateContact(idx, omega, changed);
+			statusChanged[idx] = changed;
+		}
+	}
+	Real change    = 0;
+	nStatusChanges = 0;
+	for (size_t k = 0; k < contacts.size(); ++k) {
+		change += sweepChange[k];
+		nStatusChanges += statusChanged[k];
+	}
+	return change;
+}
+
 // Stage 4b: nonlinear Gauss–Seidel over contacts. Each contact in turn: its local velocity
 // without its own impulse, b = U − W r; the exact local solve of Ũ = A(W r + b + s); the
 // impulse change applied to both bodies at once.
@@ -568,27 +670,11 @@ void ContactDynamicsIntegrator::solveImpulses()
 	const Real scale = qNorm > 0 ? qNorm : Real(1);
 	Real omega = relaxation, bestChange = std::numeric_limits<Real>::infinity();
 	int  stalled = 0;
+	const bool coloured = sweepOrder == 4;
+	if (coloured) colourContacts();
 	for (int it = 1; it <= maxIter; ++it) {
-		nStatusChanges = 0;
-		Real change    = 0; // Σ (W_NN |Δr|)²: the velocity changes this sweep made
-		const bool up  = sweepOrder == 3 ? false : (sweepOrder == 2 ? it % 2 == 1 : true);
-		const long nc  = long(contacts.size());
-		for (long k = 0; k < nc; ++k) {
-			const long idx    = up ? k : nc - 1 - k;
-			const int  before = hot[idx].fast ? hot[idx].status : contacts[idx].status;
-			Vector3r   dr;
-			Real       wnn;
-			if (hot[idx].fast) {
-				dr  = updateSphereContact(hot[idx], omega);
-				wnn = hot[idx].wnn;
-				if (hot[idx].status != before) ++nStatusChanges;
-			} else {
-				dr  = updateGeneralContact(contacts[idx], omega);
-				wnn = contacts[idx].W(0, 0);
-				if (contacts[idx].status != before) ++nStatusChanges;
-			}
-			change += dr.squaredNorm() * wnn * wnn;
-		}
+		// Σ (W_NN |Δr|)²: the velocity changes this sweep made
+		const Real change = coloured ? colouredSweep(omega) : (sweepOrder == 3 || (sweepOrder == 2 && it % 2 == 0)) ? orderedSweep(omega, false) : orderedSweep(omega, true);
 		iterations = it;
 		// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
 		// are below the tolerance (a converged state barely changes), or when asked to record.

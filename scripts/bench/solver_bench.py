@@ -10,6 +10,9 @@ Measurements (one run, one machine: compare rows of the same run, as ratios):
   of two solves of K1 and K2 forced sweeps (tolerance unreachable) divided by (K2−K1)·contacts,
   so set-up, warm start and residual checks cancel. The same exported problem solved by
   Siconos NSGS with the same two sweep counts gives its figure the same way.
+- ``CD coloured``: the same with ``sweepOrder=4`` (colour by colour, parallel over O.numThreads
+  threads: run the script with ``yade -j1`` and ``-j2`` for the speed-up); ``determinism``: a hash
+  of all velocities after 5 coloured steps, which must not depend on the thread count.
 - ``stage``: where the time of an ordinary step goes (collider, InteractionLoop = geometry and
   physics functors, and the integrator's stages), at the default tolerance, on the block and,
   with ``--snapshot``, on a pile state rebuilt from a pile run's snapshot (warm-started steps).
@@ -18,6 +21,7 @@ Each row records machine, threads, commit and date.
 import argparse
 import csv
 import datetime
+import hashlib
 import os
 import platform
 import subprocess
@@ -139,12 +143,22 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     t = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD', quantity='time per contact-sweep', value=t / n * 1e9, unit='ns')
     print('  general/fast path time per contact-sweep: %.2f' % (tg / t))
+    cd.sweepOrder = 4  # coloured, parallel with O.numThreads threads
+    tc = per_sweep(lambda k: solve_time(cd, k))
+    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD coloured', quantity='time per contact-sweep', value=tc / n * 1e9, unit='ns')
+    cd.sweepOrder = 1
     if not args.no_siconos:
         pb = fclib.local_problem(cd)
         ts = per_sweep(lambda k: siconos_time(pb, k))
         record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='Siconos NSGS', quantity='time per contact-sweep', value=ts / n * 1e9, unit='ns')
         print('  Siconos/CD time per contact-sweep: %.2f' % (ts / t))
     breakdown('fcc_block', 3 if args.quick else 10)
+    # determinism: a fixed coloured run from the same scene, hashed (compare across -j)
+    scenes.fcc_block(target / 6.2, warnUnconverged=False, sweepOrder=4, maxIter=200)
+    O.run(5, True)
+    digest = hashlib.sha1(np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies]).tobytes()).hexdigest()[:16]
+    record(kind='determinism', scene='fcc_block', bodies=len(O.bodies), contacts=yadecd.integrator().nContacts, method='CD coloured',
+           quantity='sha1 of velocities after 5 steps', value=digest, unit='')
 
 if args.snapshot:
     pile.scene_from_snapshot(args.snapshot)
