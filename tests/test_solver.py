@@ -1,6 +1,7 @@
 """The local Signorini–Coulomb solver and the Gauss–Seidel solve, against closed forms and
 against Siconos' NSGS solver (Debian's python3-siconos, an independent implementation)."""
 import math
+import os
 import random
 import unittest
 
@@ -125,6 +126,56 @@ class TestSphereFastPath(unittest.TestCase):
         g, th = 9.81, math.radians(30)
         expected = g * (math.sin(th) - 0.2 * math.cos(th)) * O.time  # sliding block
         self.assertAlmostEqual(O.bodies[sc['sphere']].state.vel[0] / expected, 1.0, delta=1e-10)
+
+
+COLOURED_RUN = """
+import hashlib, numpy as np
+from yade import O
+from yadecd import scenes
+import yadecd
+scenes.fcc_block(1400, sweepOrder=4, maxIter=40, warnUnconverged=False)
+O.run(3, True)
+cd = yadecd.integrator()
+v = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
+print('RESULT', O.numThreads, cd.nColours, cd.nContacts, hashlib.sha1(v.tobytes()).hexdigest())
+"""
+
+
+class TestColouredSweep(unittest.TestCase):
+    """sweepOrder=4: colour by colour, contacts of a colour in parallel."""
+
+    def test_colours_share_no_body_and_column_is_exact(self):
+        """A column of 12 at rest: colours alternate along the stack (2 colours), and the solve
+        still gives every contact force exactly (floor: the weight, to 1e-9)."""
+        sc = scenes.column(12, sweepOrder=4, tolerance=1e-12, maxIter=200000)
+        O.step()
+        cd = yadecd.integrator()
+        self.assertTrue(cd.converged)
+        self.assertEqual(cd.nColours, 2)
+        f = O.interactions[0, sc['ids'][0]].phys.normalForce[2]
+        self.assertAlmostEqual(f / (12 * sc['m'] * 9.81), 1.0, delta=1e-9)
+
+    def test_bit_identical_for_any_thread_count(self):
+        """The same coloured run with 1 and 2 threads (yade -j1, -j2; colours large enough to be
+        swept in parallel) ends with bit-identical velocities."""
+        import subprocess
+        import sys
+        import tempfile
+        import yade.config
+        exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
+        with tempfile.NamedTemporaryFile('w', suffix='.py', delete=False) as f:
+            f.write(COLOURED_RUN)
+        out = {}
+        for j in (1, 2):
+            res = subprocess.run([exe, '-j%d' % j, '-n', '-x', f.name], capture_output=True, text=True, timeout=300)
+            line = [l for l in res.stdout.splitlines() if l.startswith('RESULT')]
+            self.assertTrue(line, res.stdout[-2000:] + res.stderr[-2000:])
+            threads, colours, contacts, digest = line[0].split()[1:]
+            self.assertEqual(int(threads), j)
+            self.assertGreater(int(contacts) / int(colours), 512)  # colours big enough to go parallel
+            out[j] = digest
+        os.unlink(f.name)
+        self.assertEqual(out[1], out[2])
 
 
 @unittest.skipIf(sn is None, 'python3-siconos missing')
