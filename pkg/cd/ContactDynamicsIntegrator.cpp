@@ -589,7 +589,7 @@ Real ContactDynamicsIntegrator::orderedSweep(Real omega, bool up)
 	return change;
 }
 
-// Greedy colouring in the contacts' (height) order: the smallest colour not yet taken by a
+// Greedy colouring in the contacts' (height) order, then the contacts reordered by colour: the smallest colour not yet taken by a
 // contact of either dynamic body (obstacles never conflict: nothing writes them). Contacts of
 // one colour share no dynamic body, so their updates commute. Colours past 63 form one last
 // group swept sequentially.
@@ -614,10 +614,21 @@ void ContactDynamicsIntegrator::colourContacts()
 	colourStart.assign(maxColours + 2, 0);
 	for (int c = 0; c <= maxColours; ++c)
 		colourStart[c + 1] = colourStart[c] + count[c];
-	colourOrder.resize(contacts.size());
-	std::vector<long> next(colourStart.begin(), colourStart.end() - 1);
+	// store the contacts colour by colour (height order kept within a colour): each colour is
+	// then one contiguous stretch of memory
+	std::vector<long> next(colourStart.begin(), colourStart.end() - 1), order(contacts.size());
 	for (size_t k = 0; k < contacts.size(); ++k)
-		colourOrder[next[colour[k]]++] = long(k);
+		order[next[colour[k]]++] = long(k);
+	std::vector<SolverContact> byColour;
+	std::vector<SphereContact> hotByColour;
+	byColour.reserve(contacts.size());
+	hotByColour.reserve(contacts.size());
+	for (long k : order) {
+		byColour.push_back(std::move(contacts[k]));
+		hotByColour.push_back(hot[k]);
+	}
+	contacts.swap(byColour);
+	hot.swap(hotByColour);
 	nColours = 0;
 	for (int c = 0; c <= maxColours; ++c)
 		if (count[c]) nColours = c + 1;
@@ -635,9 +646,8 @@ Real ContactDynamicsIntegrator::colouredSweep(Real omega)
 		const long begin = colourStart[c], end = colourStart[c + 1];
 		const bool parallel = c < last && end - begin >= 512;
 #pragma omp parallel for schedule(static) if (parallel)
-		for (long j = begin; j < end; ++j) {
-			const long idx = colourOrder[j];
-			bool       changed;
+		for (long idx = begin; idx < end; ++idx) {
+			bool changed;
 			sweepChange[idx]   = updateContact(idx, omega, changed);
 			statusChanged[idx] = changed;
 		}

@@ -121,7 +121,7 @@ private:
 	std::vector<BodyRecord>    records;
 	std::vector<SolverContact> contacts;
 	std::vector<SphereContact> hot; // parallel to contacts
-	std::vector<long>          colourStart, colourOrder; // coloured sweep: contacts of colour c are colourOrder[colourStart[c] .. colourStart[c+1])
+	std::vector<long>          colourStart; // coloured sweep: contacts of colour c are contacts[colourStart[c] .. colourStart[c+1])
 	std::vector<Real>          sweepChange;              // per contact, summed in a fixed order
 	std::vector<char>          statusChanged;
 	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
