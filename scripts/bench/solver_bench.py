@@ -168,9 +168,13 @@ if args.snapshot:
     O.run(20, True)  # rebuild contacts and warm start (snapshots hold no impulses)
     O.saveTmp('bench')
     breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps)
-    O.loadTmp('bench')  # the same steps again through the general path
-    O.timingEnabled = True
-    yadecd.integrator().sphereFastPath = False
-    breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps, method='CD general path')
+    # the same steps again: general path, over-relaxation, coloured sweep
+    for method, attrs in (('CD general path', dict(sphereFastPath=False)), ('CD relaxation 1.8', dict(relaxation=1.8)),
+                          ('CD coloured', dict(sweepOrder=4)), ('CD coloured, relaxation 1.8', dict(sweepOrder=4, relaxation=1.8))):
+        O.loadTmp('bench')
+        O.timingEnabled = True
+        for k, v in attrs.items():
+            setattr(yadecd.integrator(), k, v)
+        breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps, method=method)
 
 print('wrote', args.out)
