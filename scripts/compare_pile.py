@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))  # inside YADE __file__ is the yade executable
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--grains', type=int, default=300)
 parser.add_argument('--relax', type=float, default=0.5)

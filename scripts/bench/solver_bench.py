@@ -34,7 +34,7 @@ from yade import O
 import yadecd
 from yadecd import scenes, fclib, pile
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))  # inside YADE __file__ is the yade executable
 
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--contacts', default='1e3,1e4,1e5', help='target contact counts of the FCC blocks')
