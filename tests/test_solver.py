@@ -172,7 +172,7 @@ class TestColouredSweep(unittest.TestCase):
             self.assertTrue(line, res.stdout[-2000:] + res.stderr[-2000:])
             threads, colours, contacts, digest = line[0].split()[1:]
             self.assertEqual(int(threads), j)
-            self.assertGreater(int(contacts) / int(colours), 512)  # colours big enough to go parallel
+            self.assertGreater(int(contacts) / int(colours), 64)  # colours big enough to go parallel
             out[j] = digest
         os.unlink(f.name)
         self.assertEqual(out[1], out[2])

@@ -641,10 +641,11 @@ void ContactDynamicsIntegrator::colourContacts()
 // depend on the number of threads.
 Real ContactDynamicsIntegrator::colouredSweep(Real omega)
 {
+	constexpr long minParallelColour = 64; // below this a colour is swept by one thread (a parallel region costs a few µs)
 	const int last = int(colourStart.size()) - 2; // the sequential overflow group
 	for (int c = 0; c <= last; ++c) {
 		const long begin = colourStart[c], end = colourStart[c + 1];
-		const bool parallel = c < last && end - begin >= 512;
+		const bool parallel = c < last && end - begin >= minParallelColour;
 #pragma omp parallel for schedule(static) if (parallel)
 		for (long idx = begin; idx < end; ++idx) {
 			bool changed;
