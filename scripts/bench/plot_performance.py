@@ -5,9 +5,9 @@
 
 - perf_sweep.png: ns per contact per sweep against contacts, per method (CD fast path, general
   path, coloured with 1 and 2 threads, Siconos NSGS);
-- perf_pile_cost.png: a pile run's wall time per step, sweeps per step and per-contact-sweep
-  cost against its number of contacts (from the run's progress.csv: consecutive lines give
-  wall time and simulated time elapsed), with the extrapolation to the paper's 33 000 contacts.
+- perf_pile_cost.png: a pile step's cost against its number of contacts: the model
+  ns × contacts × sweeps(contacts), with ns from the quiet benchmark and sweeps fitted to the
+  run's progress.csv, extrapolated to the paper's 33 000 contacts and to the full run.
 """
 import argparse
 import csv
@@ -24,6 +24,9 @@ ap.add_argument('--bench', nargs='*', default=[os.path.join(REPO, 'docs', 'data'
                                               os.path.join(REPO, 'docs', 'data', 'solver_bench_2threads.csv')])
 ap.add_argument('--progress', default=os.path.join(REPO, 'docs', 'data', 'pile2000_progress.csv'))
 ap.add_argument('--dt', type=float, default=2e-4, help='time step of the pile run [s]')
+ap.add_argument('--ns', type=float, default=30.6, help='ns per contact-sweep of the solve on a pile (quiet benchmark)')
+ap.add_argument('--step-over-solve', type=float, default=1.25, help='step time over solve time (quiet benchmark)')
+ap.add_argument('--omega-gain', type=float, default=0.66, help='step time with ω = 1.8 over ω = 1 (quiet benchmark)')
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'figures'))
 a = ap.parse_args()
 os.makedirs(a.out, exist_ok=True)
@@ -58,45 +61,45 @@ if series:
     print('wrote perf_sweep.png')
 
 # --- pile cost against contacts
+# Model (each factor measured): step = overhead × ns_per_contact_sweep × contacts × sweeps(contacts),
+# ns and the overhead (step over solve) from the quiet pile benchmark, sweeps(contacts) a power
+# law fitted to the run's sampled sweeps. The run's own wall times (shared machine, pauses for
+# benchmarks) are drawn for comparison.
 if os.path.exists(a.progress):
     d = np.genfromtxt(a.progress, delimiter=',', names=True)
-    t, c, sw, wall = d['time_s'], d['contacts'], d['sweeps'], d['wall_s']
+    t, c, sw, wall, g = d['time_s'], d['contacts'], d['sweeps'], d['wall_s'], d['grains']
     keep = np.diff(t) > 0
-    steps = np.diff(t)[keep] / a.dt
-    per_step = np.diff(wall)[keep] / steps  # s per step between consecutive progress lines
+    per_step = np.diff(wall)[keep] / (np.diff(t)[keep] / a.dt)
     cm = 0.5 * (c[1:] + c[:-1])[keep]
-    swm = 0.5 * (sw[1:] + sw[:-1])[keep]
-    ns = per_step / (cm * np.maximum(swm, 1)) * 1e9  # rough: the sweeps printed are one step's
+    ok = (c > 1000) & (sw > 0)
+    beta, log_a = np.polyfit(np.log(c[ok]), np.log(sw[ok]), 1)
+    sweeps = lambda cc: np.exp(log_a) * np.asarray(cc, float) ** beta
+    step = lambda cc: a.step_over_solve * a.ns * 1e-9 * np.asarray(cc, float) * sweeps(cc)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
-    a1.plot(cm, per_step * 1e3, '.', ms=4, label='measured (pile run)')
-    # cost = contacts × sweeps × (ns per contact-sweep). How sweeps grow with the pile is the
-    # uncertain part: constant (cost ∝ c), like the height (∝ c^(4/3), c ∝ N ∝ H³), or like the
-    # contacts (∝ c²). One-parameter fits through the origin; the middle one is drawn.
-    models = {p: float(np.sum(per_step * cm ** p) / np.sum(cm ** (2 * p))) for p in (1.0, 4 / 3, 2.0)}
-    cost = lambda p, cc: models[p] * np.asarray(cc, float) ** p
-    x = np.linspace(0, 33000, 200)
-    a1.plot(x, cost(4 / 3, x) * 1e3, 'r--', lw=1, label='fit a·c^(4/3), extrapolated')
-    a1.plot(x, cost(1.0, x) * 1e3, 'r:', lw=0.8, label='fits a·c and a·c²')
-    a1.plot(x, cost(2.0, x) * 1e3, 'r:', lw=0.8)
-    a1.set_ylim(0, 1.2 * cost(4 / 3, 33000) * 1e3)
+    x = np.linspace(500, 33000, 200)
+    a1.plot(cm, per_step * 1e3, '.', ms=3, color='0.6', label='the run (shared machine)')
+    a1.plot(x, step(x) * 1e3, 'r-', label='model: %.1f ns × contacts × sweeps' % (a.ns * a.step_over_solve))
+    a1.plot(x, a.omega_gain * step(x) * 1e3, 'b--', label='same, relaxation ω = 1.8 (×%.2f)' % a.omega_gain)
     a1.axvline(33000, color='k', ls=':', lw=0.8)
     a1.axhline(50, color='g', ls=':', lw=0.8)
+    a1.set_yscale('log')
     a1.set_xlabel('contacts')
     a1.set_ylabel('wall time per step [ms]')
-    a1.set_title('Pile: step cost (tolerance 1e-3), 1 thread')
+    a1.set_title('Pile step cost, 1 thread, tolerance 1e-3')
     a1.legend(fontsize=8)
-    a2.plot(cm, swm, '.', ms=4)
+    a2.loglog(c[ok], sw[ok], '.', ms=4, label='sampled steps of the run')
+    a2.loglog(x, sweeps(x), 'r-', label='fit: sweeps ∝ contacts^%.2f' % beta)
     a2.set_xlabel('contacts')
-    a2.set_ylabel('Gauss–Seidel sweeps per step (sampled)')
-    a2.set_title('Pile: sweeps to tolerance 1e-3')
+    a2.set_ylabel('Gauss–Seidel sweeps per step')
+    a2.set_title('Sweeps to tolerance 1e-3')
+    a2.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(os.path.join(a.out, 'perf_pile_cost.png'), dpi=120)
-    print('wrote perf_pile_cost.png; ms/step at 33 000 contacts: %s' % ', '.join('c^%.2f: %.0f' % (p, cost(p, 33000) * 1e3) for p in models))
-    # The paper's full run, extrapolated (labelled so): contacts grow in proportion to grains
-    # (fitted on this run), 1/(rate·dt) = 25 steps per grain, 14 000 grains, cost from the fit.
-    g = d['grains']
+    # The paper's full run, extrapolated (labelled so): contacts in proportion to grains (fitted
+    # on this run), 1/(rate·dt) = 25 steps per grain, 14 000 grains, then no relaxation.
     k = float(np.sum(c * g) / np.sum(g * g))
     n = np.arange(1, 14001)
-    hours = {p: 25 * cost(p, k * n).sum() / 3600 for p in models}
-    print('contacts per grain %.2f; extrapolated full 14 000-grain deposition (%d steps): %s' % (
-        k, 25 * 14000, ', '.join('c^%.2f: %.0f h' % (p, h) for p, h in hours.items())))
+    hours = 25 * step(k * n).sum() / 3600
+    print('sweeps ~ contacts^%.2f; model step at 33 000 contacts: %.2f s (%.2f s with ω = 1.8)' % (beta, step(33000), a.omega_gain * step(33000)))
+    print('contacts per grain %.2f; extrapolated full 14 000-grain deposition (350 000 steps): %.0f h (%.0f h with ω = 1.8)'
+          % (k, hours, a.omega_gain * hours))
