@@ -135,5 +135,40 @@ class TestTinyPile(unittest.TestCase):
         self.assertTrue(0 < saved['floor_load_over_weight'] <= 1.05)
 
 
+class TestPileMethods(unittest.TestCase):
+    """The same protocol with YADE's MD (the CD-versus-MD comparison of a pile), bad methods."""
+
+    def test_md_pile(self):
+        """method='MD': YADE's linear law at 0.5·PWaveTimeStep, grains fed at the same rate in
+        simulated time, resting with small but non-zero overlaps, forces in the snapshot."""
+        tmp = tempfile.mkdtemp(prefix='cd-pile-md-')
+        try:
+            p = pile.run(tmp, n_grains=8, relax=0.05, snap_every=1.0, seed=2, method='MD', young=1e6, log=lambda s: None)
+            from yade.wrapper import NewtonIntegrator, ContactDynamicsIntegrator
+            self.assertIsInstance(O.engines[-1], NewtonIntegrator)
+            self.assertNotIsInstance(O.engines[-1], ContactDynamicsIntegrator)
+            from yade import utils
+            self.assertAlmostEqual(p['dt'], 0.5 * utils.PWaveTimeStep(), delta=1e-12)
+            self.assertAlmostEqual(O.time, 8 / 200.0 + 0.05, delta=2 * p['dt'])
+            pen = [i.geom.penetrationDepth for i in O.interactions if i.isReal]
+            self.assertTrue(pen and max(pen) > 0)
+            snaps = [f for f in os.listdir(tmp) if f.startswith('snap_')]
+            snap = np.load(os.path.join(tmp, snaps[-1]))
+            self.assertGreater(np.linalg.norm(snap['c_force'], axis=1).max(), 0)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def test_unknown_method(self):
+        """Rejected before anything is built: the current scene is left as it was."""
+        tmp = tempfile.mkdtemp(prefix='cd-pile-bad-')
+        n_before = len(O.bodies)
+        try:
+            with self.assertRaisesRegex(ValueError, "method must be 'CD' or 'MD'"):
+                pile.run(tmp, n_grains=2, method='FEM', log=lambda s: None)
+            self.assertEqual(len(O.bodies), n_before)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
 if __name__ == '__main__':
     unittest.main()

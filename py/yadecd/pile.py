@@ -311,6 +311,8 @@ def run(run_dir, resume=False, log=print, **overrides):
             raise ValueError('need 0 < d_min <= d_max (got %g, %g)' % (p['d_min'], p['d_max']))
         if p['n_grains'] < 1 or p['rate'] <= 0 or p['dt'] <= 0:
             raise ValueError('n_grains, rate and dt must be positive')
+        if p['method'] not in ('CD', 'MD'):
+            raise ValueError("method must be 'CD' or 'MD', not %r" % (p['method'],))
         n_paving = build_scene(p)
         p['n_paving'] = n_paving
         with open(os.path.join(run_dir, 'run.json'), 'w') as f:
