@@ -619,6 +619,12 @@ void ContactDynamicsIntegrator::colourContacts()
 	std::vector<long> next(colourStart.begin(), colourStart.end() - 1), order(contacts.size());
 	for (size_t k = 0; k < contacts.size(); ++k)
 		order[next[colour[k]]++] = long(k);
+	// within a colour, by body ids: neighbouring contacts then touch neighbouring bodies in memory
+	for (int c = 0; c <= maxColours; ++c)
+		std::sort(order.begin() + colourStart[c], order.begin() + colourStart[c + 1], [this](long a, long b) {
+			const SolverContact &ca = contacts[a], &cb = contacts[b];
+			return ca.b1 < cb.b1 || (ca.b1 == cb.b1 && ca.b2 < cb.b2);
+		});
 	std::vector<SolverContact> byColour;
 	std::vector<SphereContact> hotByColour;
 	byColour.reserve(contacts.size());
