@@ -71,7 +71,7 @@ if os.path.exists(a.progress):
     keep = np.diff(t) > 0
     per_step = np.diff(wall)[keep] / (np.diff(t)[keep] / a.dt)
     cm = 0.5 * (c[1:] + c[:-1])[keep]
-    ok = (c > 1000) & (sw > 0)
+    ok = (c > 1000) & (sw > 0) & (g < g.max())  # the deposition only (relaxation steps are cheaper)
     beta, log_a = np.polyfit(np.log(c[ok]), np.log(sw[ok]), 1)
     sweeps = lambda cc: np.exp(log_a) * np.asarray(cc, float) ** beta
     step = lambda cc: a.step_over_solve * a.ns * 1e-9 * np.asarray(cc, float) * sweeps(cc)
