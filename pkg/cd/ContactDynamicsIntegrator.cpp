@@ -290,10 +290,10 @@ void ContactDynamicsIntegrator::gatherContacts()
 		c.P      = 0;
 		contacts.push_back(c);
 	}
-	// Gauss–Seidel order: by height along −gravity (z without gravity), ties by ids. Sweeps
-	// alternate direction (see solveImpulses), so a load change travels the whole height of a
-	// stack in one half-sweep, down or up. The key depends only on the state, so a saved and
-	// reloaded scene sweeps in the same order.
+	// Gauss–Seidel order: by height along −gravity (z without gravity), ties by ids; an upward
+	// sweep carries a load change from the floor up the whole stack in one sweep (sweepOrder
+	// 0 uses ids only). The key depends only on the state, so a saved and reloaded scene sweeps
+	// in the same order.
 	const Vector3r up = gravity.squaredNorm() > 0 ? Vector3r(-gravity.normalized()) : Vector3r::UnitZ();
 	for (SolverContact& c : contacts)
 		c.height = up.dot(static_cast<ScGeom*>(c.I->geom.get())->contactPoint);
@@ -691,7 +691,8 @@ void ContactDynamicsIntegrator::solveImpulses()
 	if (coloured) colourContacts();
 	for (int it = 1; it <= maxIter; ++it) {
 		// Σ (W_NN |Δr|)²: the velocity changes this sweep made
-		const Real change = coloured ? colouredSweep(omega) : (sweepOrder == 3 || (sweepOrder == 2 && it % 2 == 0)) ? orderedSweep(omega, false) : orderedSweep(omega, true);
+		const bool down   = sweepOrder == 3 || (sweepOrder == 2 && it % 2 == 0);
+		const Real change = coloured ? colouredSweep(omega) : orderedSweep(omega, !down);
 		iterations = it;
 		// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
 		// are below the tolerance (a converged state barely changes), or when asked to record.

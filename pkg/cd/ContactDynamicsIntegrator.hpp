@@ -21,7 +21,8 @@
 //   computeFreeVelocities     u_free = u_i + h M⁻¹ (F_ext + m g)
 //   assembleLocalProblems     local frame, Delassus block W_αα, law offsets per contact
 //   solveImpulses             nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
-//                             contacts ordered by height, sweeps alternately upwards and downwards
+//                             in sweepOrder (default: by height, upwards); sphere contacts through
+//                             a compact fast path, optionally coloured and parallel
 //   correctPositions          split projection: removes only the overlap that the step created,
 //                             through pseudo-velocities that are never stored
 //   updatePositions           q_f = q_m + h/2 (u_f + ũ)
