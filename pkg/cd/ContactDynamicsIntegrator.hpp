@@ -125,6 +125,8 @@ private:
 	std::vector<long>          colourStart; // coloured sweep: contacts of colour c are contacts[colourStart[c] .. colourStart[c+1])
 	std::vector<Real>          sweepChange;              // per contact, summed in a fixed order
 	std::vector<char>          statusChanged;
+	std::vector<Vector3r>      rPrev;        // momentum: impulses after the previous sweep (per contact)
+	std::vector<Vector3r>      vPrev, wPrev; // momentum: body velocities after the previous sweep
 	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
 
 	void checkScene();
@@ -143,6 +145,9 @@ private:
 	Vector3r localVelocity(const SolverContact& c) const;
 	Vector3r localPseudoVelocity(const SolverContact& c) const;
 	void     applyImpulse(const SolverContact& c, const Vector3r& dr);
+	void     applySphereImpulse(const SphereContact& c, const Vector3r& dr);
+	void     startMomentum();
+	void     extrapolateImpulses(Real beta);
 	void     buildSphereContact(size_t k);
 	Vector3r updateSphereContact(SphereContact& c, Real omega);
 	Vector3r sphereVelocity(const SphereContact& c) const;
@@ -169,6 +174,7 @@ public:
 		((Real, alertSpeedFactor, 2.0, Attr::triggerPostLoad, "Alert distance, speed part: how many steps' worth of travel at the current speed a pair is watched ahead [-]. Must be ≥ 1 so that no contact closing within a step is missed (no tunnelling)."))
 		((Real, positionTolerance, 1e-6, Attr::triggerPostLoad, "Position correction: largest overlap beyond a contact's allowance left at the end of a step, relative to the contact's reference radius [-]. Smaller values cost more correction sweeps in dense packings (the correction is a Gauss–Seidel too)."))
 		((int, maxProjectionIter, 200, Attr::triggerPostLoad, "Maximum sweeps of the position correction."))
+		((bool, momentum, false, , "Accelerate the Gauss–Seidel sweeps with Nesterov's momentum and adaptive restart (accelerated projected Gauss–Seidel): after a sweep gives the impulses x_k, the next sweep starts from y_k = P_C(x_k + β_k (x_k − x_{k−1})), β_k = (t_k − 1)/t_{k+1}, t_{k+1} = (1 + √(1 + 4t_k²))/2, t_1 = 1; t restarts at 1 (β = 0) whenever a sweep changes the velocities more than the sweep before (O'Donoghue & Candès 2015). The first sweep is plain Gauss–Seidel, so a single contact is still solved exactly in one sweep. The extrapolation costs a pass over contacts and bodies (about a quarter of a sweep). Measured on sand-pile steps: 2.3–3.7× fewer sweeps (docs/performance.md)."))
 		((bool, sphereFastPath, true, , "Sweep contacts whose lever arms lie along the normal, between isotropic bodies (every sphere–sphere and sphere–static-obstacle contact without blocked DOFs), through a compact copy with a diagonal Delassus block: the same updates to rounding, about three times faster (docs/performance.md). False: every contact takes the general 3×3 path."))
 		((bool, warnUnconverged, true, , "Log a warning for every step whose solve did not converge."))
 		((bool, recordResidual, false, , "Record the residual after each checked sweep in :yref:`residualHistory<ContactDynamicsIntegrator.residualHistory>` (last step only)."))
