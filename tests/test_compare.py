@@ -61,7 +61,7 @@ class TestCompareCDFailures(unittest.TestCase):
         """Whenever a step of the 40-column reports converged at tol 1e-6, the floor force is
         within 1e-4 (docs/data/column_convergence.csv: cold error ≈ 2·tol); unconverged steps
         are exactly those counted."""
-        sc = scenes.column(40, tolerance=1e-6, maxIter=2000, relaxation=1.0, warnUnconverged=False)
+        sc = scenes.column(40, tolerance=1e-6, maxIter=2000, relaxation=1.0, momentum=False, warnUnconverged=False)
         cd = yadecd.integrator()
         flagged = 0
         for _ in range(10):
@@ -73,6 +73,18 @@ class TestCompareCDFailures(unittest.TestCase):
         self.assertEqual(cd.nUnconverged, flagged)
         self.assertGreater(flagged, 0, 'maxIter=2000 must be too small for the cold start of this column')
         self.assertLess(flagged, 10, 'the warm start must eventually converge within 2000 sweeps')
+
+    def test_momentum_converges_where_plain_gs_stalls(self):
+        """The same cold 40-column with Nesterov momentum (the default): every step converges
+        within the 2000 sweeps that plain Gauss–Seidel overruns, to the same floor-force accuracy."""
+        sc = scenes.column(40, tolerance=1e-6, maxIter=2000, warnUnconverged=False)
+        cd = yadecd.integrator()
+        self.assertTrue(cd.momentum)
+        for _ in range(10):
+            O.step()
+            self.assertTrue(cd.converged)
+            self.assertLess(floor_error(sc['ids'], sc['m']), 1e-4)
+        self.assertEqual(cd.nUnconverged, 0)
 
     def test_stall_named_by_compare(self):
         r = compare.run('column', 'CD', {'n': 10}, dt=1e-3, tolerance=1e-6, maxIter=20, T=0.02, repeats=1)
