@@ -27,7 +27,7 @@ parser.add_argument('--resume', action='store_true', help='continue the run in -
 for key, value in pile.DEFAULTS.items():
     flag = '--' + key.replace('_', '-')
     if isinstance(value, bool):
-        parser.add_argument(flag, dest=key, action='store_true', default=None)
+        parser.add_argument(flag, dest=key, action=argparse.BooleanOptionalAction, default=None, help="default: %s" % value)
     else:
         parser.add_argument(flag, dest=key, type=type(value), default=None, help='default: %r' % (value,))
 args = parser.parse_args(sys.argv[1:])

@@ -53,7 +53,8 @@ DEFAULTS = dict(
     checkpoint_every=60.0,  # wall-clock seconds between checkpoints
     tolerance=1e-3,      # Gauss–Seidel relative residual (see docs/pile.md for its effect on forces)
     max_iter=2000,
-    relaxation=1.0,      # Gauss–Seidel over-relaxation ω (1.8 halves the sweeps on piles, docs/performance.md)
+    relaxation=1.0,      # Gauss–Seidel over-relaxation ω (with momentum off, 1.8 halves the sweeps on piles)
+    momentum=True,       # Nesterov momentum over the sweeps (2–4× fewer sweeps on piles, docs/performance.md)
     vtk=False,           # also export VTK files (ParaView) at snapshots
     stop_time=0.0,       # s; > 0: checkpoint and stop there (continue later with resume)
     method='CD',         # 'CD', or 'MD': YADE's soft contacts (linear spring–slider) on the same protocol
@@ -126,7 +127,8 @@ def set_engines(p):
     method = p.get('method', 'CD')
     if method == 'CD':
         O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
-                            relaxation=p.get('relaxation', 1.0), warnUnconverged=False)
+                            relaxation=p.get('relaxation', 1.0), momentum=bool(p.get('momentum', True)),
+                            warnUnconverged=False)
         O.dt = p['dt']
     elif method == 'MD':
         from .compare import md_engines

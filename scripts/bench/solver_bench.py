@@ -1,7 +1,7 @@
 """Solver benchmark harness (issue 6): prints and saves (CSV) per-contact Gauss–Seidel cost of
 the CD engine and of Siconos' NSGS on the same problems, and where a step's time goes.
 
-    scripts/yade -n -x scripts/bench/solver_bench.py [--contacts 1e3,1e4,1e5] [--snapshot RUN/snap_0008.000.npz]
+    scripts/yade -n -x scripts/bench/solver_bench.py [--contacts 1e3,1e4,1e5] [--snapshot RUN/snap_*.npz]
                                                      [--out docs/data/solver_bench.csv] [--quick]
 
 Measurements (one run, one machine: compare rows of the same run, as ratios):
@@ -15,7 +15,10 @@ Measurements (one run, one machine: compare rows of the same run, as ratios):
   of all velocities after 5 coloured steps, which must not depend on the thread count.
 - ``stage``: where the time of an ordinary step goes (collider, InteractionLoop = geometry and
   physics functors, and the integrator's stages), at the default tolerance, on the block and,
-  with ``--snapshot``, on a pile state rebuilt from a pile run's snapshot (warm-started steps).
+  with ``--snapshot``, on pile states rebuilt from a pile run's snapshots (warm-started steps),
+  with the default solver (momentum) and with plain Gauss–Seidel, its general path and ω = 1.8,
+  and the coloured sweep: sweeps per step and cost against contacts.
+- ``CD momentum`` sweep rows: a sweep plus the momentum extrapolation pass.
 Each row records machine, threads, commit and date.
 """
 import argparse
@@ -38,7 +41,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[
 
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--contacts', default='1e3,1e4,1e5', help='target contact counts of the FCC blocks')
-parser.add_argument('--snapshot', default='', help='a pile snapshot .npz for the per-stage breakdown on a pile state')
+parser.add_argument('--snapshot', nargs='*', default=[], help='pile snapshots .npz for the per-stage breakdown on pile states (several: sweeps and cost against contacts)')
 parser.add_argument('--pile-steps', type=int, default=20, help='steps timed on the pile state')
 parser.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'solver_bench.csv'))
 parser.add_argument('--quick', action='store_true', help='fewer sweeps (a smoke run)')
@@ -136,6 +139,7 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     tol, maxit = cd.tolerance, cd.maxIter
     O.step()  # contacts appear; warm start from here on
     n = cd.nContacts
+    cd.momentum = False  # the sweep alone; the momentum pass is timed below
     cd.sphereFastPath = False
     tg = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD general path', quantity='time per contact-sweep', value=tg / n * 1e9, unit='ns')
@@ -147,6 +151,9 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     tc = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD coloured', quantity='time per contact-sweep', value=tc / n * 1e9, unit='ns')
     cd.sweepOrder = 1
+    cd.momentum = True  # a sweep plus the momentum extrapolation
+    tm = per_sweep(lambda k: solve_time(cd, k))
+    record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD momentum', quantity='time per contact-sweep', value=tm / n * 1e9, unit='ns')
     if not args.no_siconos:
         pb = fclib.local_problem(cd)
         ts = per_sweep(lambda k: siconos_time(pb, k))
@@ -160,21 +167,21 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     record(kind='determinism', scene='fcc_block', bodies=len(O.bodies), contacts=yadecd.integrator().nContacts, method='CD coloured',
            quantity='sha1 of velocities after 5 steps', value=digest, unit='')
 
-if args.snapshot:
-    pile.scene_from_snapshot(args.snapshot)
+for snapshot in args.snapshot:
+    pile.scene_from_snapshot(snapshot)
     O.timingEnabled = True
     cd = yadecd.integrator()
     tol, maxit = cd.tolerance, cd.maxIter
     O.run(20, True)  # rebuild contacts and warm start (snapshots hold no impulses)
     O.saveTmp('bench')
-    breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps)
-    # the same steps again: general path, over-relaxation, coloured sweep
-    for method, attrs in (('CD general path', dict(sphereFastPath=False)), ('CD relaxation 1.8', dict(relaxation=1.8)),
-                          ('CD coloured', dict(sweepOrder=4)), ('CD coloured, relaxation 1.8', dict(sweepOrder=4, relaxation=1.8))):
+    breakdown('pile ' + os.path.basename(snapshot), args.pile_steps)
+    # the same steps again: plain Gauss–Seidel, general path, over-relaxation, coloured sweep
+    for method, attrs in (('CD plain GS', dict(momentum=False)), ('CD plain GS general path', dict(momentum=False, sphereFastPath=False)),
+                          ('CD plain GS relaxation 1.8', dict(momentum=False, relaxation=1.8)), ('CD coloured', dict(sweepOrder=4))):
         O.loadTmp('bench')
         O.timingEnabled = True
         for k, v in attrs.items():
             setattr(yadecd.integrator(), k, v)
-        breakdown('pile ' + os.path.basename(args.snapshot), args.pile_steps, method=method)
+        breakdown('pile ' + os.path.basename(snapshot), args.pile_steps, method=method)
 
 print('wrote', args.out)
