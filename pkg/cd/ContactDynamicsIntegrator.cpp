@@ -765,13 +765,11 @@ void ContactDynamicsIntegrator::startMomentum()
 
 void ContactDynamicsIntegrator::extrapolateImpulses(Real beta)
 {
-	for (size_t b = 0; b < bodies.size(); ++b) {
+	for (size_t b = 0; b < bodies.size(); ++b) { // obstacles: v = vPrev (never written), unchanged
 		SolverBody&    B = bodies[b];
 		const Vector3r v = B.v, w = B.w;
-		if (records[b].dynamic) {
-			B.v += beta * (v - vPrev[b]);
-			B.w += beta * (w - wPrev[b]);
-		}
+		B.v += beta * (v - vPrev[b]);
+		B.w += beta * (w - wPrev[b]);
 		vPrev[b] = v;
 		wPrev[b] = w;
 	}
@@ -779,15 +777,16 @@ void ContactDynamicsIntegrator::extrapolateImpulses(Real beta)
 		const bool     fast = hot[k].fast;
 		Vector3r&      r    = fast ? hot[k].r : contacts[k].r;
 		const Vector3r x    = r;
-		const Vector3r y    = x + beta * (x - rPrev[k]);
-		const Vector3r p    = cd::projectOnCone(y, fast ? hot[k].mu : contacts[k].mu);
-		rPrev[k]            = x;
-		if (p != y) {
-			if (fast) applySphereImpulse(hot[k], p - y);
-			else
-				applyImpulse(contacts[k], p - y);
-		}
-		r = p;
+		if (x == rPrev[k]) continue; // unchanged (open contacts mostly): y = x
+		const Vector3r y  = x + beta * (x - rPrev[k]);
+		const Real     mu = fast ? hot[k].mu : contacts[k].mu;
+		rPrev[k]          = x;
+		r                 = y;
+		if (y[0] >= 0 && y[1] * y[1] + y[2] * y[2] <= mu * mu * y[0] * y[0]) continue; // inside the cone
+		r = cd::projectOnCone(y, mu);
+		if (fast) applySphereImpulse(hot[k], r - y);
+		else
+			applyImpulse(contacts[k], r - y);
 	}
 }
 
@@ -798,9 +797,17 @@ Vector3r ContactDynamicsIntegrator::localPseudoVelocity(const SolverContact& c) 
 	return c.frame * ((b2.pv + b2.pw.cross(c.c2)) - (b1.pv + b1.pw.cross(c.c1)));
 }
 
-void ContactDynamicsIntegrator::applyPseudoImpulse(const SolverContact& c, Real dP)
+// A normal pseudo-impulse change dP on contact k; a SphereContact's never makes rotations.
+void ContactDynamicsIntegrator::applyPseudoImpulse(long k, Real dP)
 {
-	const Vector3r P = c.frame.row(0).transpose() * dP;
+	if (hot[k].fast) {
+		const SphereContact& f = hot[k];
+		records[f.b2].pv += f.m2 * dP * f.n;
+		records[f.b1].pv -= f.m1 * dP * f.n;
+		return;
+	}
+	const SolverContact& c = contacts[k];
+	const Vector3r       P = c.frame.row(0).transpose() * dP;
 	BodyRecord&    r1 = records[c.b1];
 	BodyRecord&    r2 = records[c.b2];
 	r2.pv += bodies[c.b2].invM.cwiseProduct(P);
@@ -845,13 +852,7 @@ void ContactDynamicsIntegrator::correctPositions()
 			const Real     v    = (-c.allowance - gapF[k] - 0.5 * h * pseudoNormal(k)) / c.refR; // > 0: overlap beyond the allowance
 			worst               = math::max(worst, v);
 			const Real     Pnew = math::max(Real(0), c.P + (2 / h) * v * c.refR / c.W(0, 0));
-			if (hot[k].fast) {
-				const SphereContact& f  = hot[k];
-				const Vector3r       dP = (Pnew - c.P) * f.n;
-				records[f.b2].pv += f.m2 * dP;
-				records[f.b1].pv -= f.m1 * dP;
-			} else
-				applyPseudoImpulse(c, Pnew - c.P);
+			applyPseudoImpulse(k, Pnew - c.P);
 			c.P = Pnew;
 		}
 		projectionIterations = it;

@@ -97,17 +97,18 @@ public:
 	 *  Other contacts (blocked DOFs, anisotropic inertia, rotating obstacles) take the general
 	 *  path on SolverContact; both give the same result to rounding. */
 	struct SphereContact {
+		// first cache line: what the momentum pass reads
+		Vector3r r;         // impulse, local frame
+		Real     mu, wnn;   // friction coefficient, W_NN
+		int      b1, b2, status;
+		bool     fast;      // false: use the general path on SolverContact
 		Vector3r n, t1, t2; // local frame
 		Vector3r Wd;        // diagonal of the law's block A·W
 		Vector3r A;         // law scaling
 		Vector3r bias;      // A∘s
-		Vector3r r;         // impulse, local frame
 		Real     l1, l2;    // lever arms along n
 		Real     m1, m2;    // inverse masses (0: obstacle)
 		Real     k1, k2;    // inverse inertias times lever arms
-		Real     mu, wnn;   // friction coefficient, W_NN
-		int      b1, b2, status;
-		bool     fast;      // false: use the general path on SolverContact
 	};
 
 	void action() override;
@@ -157,7 +158,7 @@ private:
 	Real     orderedSweep(Real omega, bool up);
 	void     colourContacts();
 	Real     colouredSweep(Real omega);
-	void     applyPseudoImpulse(const SolverContact& c, Real dP);
+	void     applyPseudoImpulse(long k, Real dP);
 	Real     computeResidual();
 	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
 
