@@ -5,9 +5,10 @@
 
 - perf_sweep.png: ns per contact per sweep against contacts, per method (CD fast path, general
   path, coloured with 1 and 2 threads, Siconos NSGS);
-- perf_pile_cost.png: a pile step's cost against its number of contacts: the model
-  ns × contacts × sweeps(contacts), with ns from the quiet benchmark and sweeps fitted to the
-  run's progress.csv, extrapolated to the paper's 33 000 contacts and to the full run.
+- perf_pile_cost.png: a pile step's cost against its number of contacts, per solver variant:
+  the model overhead × ns × contacts × sweeps(contacts), with ns and the overhead (step over
+  solve) from the pile benchmark and sweeps fitted to that variant's run (progress.csv),
+  extrapolated to the paper's 33 000 contacts and to the full run.
 """
 import argparse
 import csv
@@ -22,11 +23,12 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 ap = argparse.ArgumentParser()
 ap.add_argument('--bench', nargs='*', default=[os.path.join(REPO, 'docs', 'data', 'solver_bench.csv'),
                                               os.path.join(REPO, 'docs', 'data', 'solver_bench_2threads.csv')])
-ap.add_argument('--progress', default=os.path.join(REPO, 'docs', 'data', 'pile2000_progress.csv'))
-ap.add_argument('--dt', type=float, default=2e-4, help='time step of the pile run [s]')
-ap.add_argument('--ns', type=float, default=30.6, help='ns per contact-sweep of the solve on a pile (quiet benchmark)')
-ap.add_argument('--step-over-solve', type=float, default=1.25, help='step time over solve time (quiet benchmark)')
-ap.add_argument('--omega-gain', type=float, default=0.66, help='step time with ω = 1.8 over ω = 1 (quiet benchmark)')
+ap.add_argument('--run', nargs='*', metavar='LABEL,PROGRESS_CSV,NS,STEP_OVER_SOLVE',
+                default=['plain Gauss–Seidel,%s,30.6,1.25' % os.path.join(REPO, 'docs', 'data', 'pile2000_progress.csv'),
+                         'momentum (default),%s,46.1,1.37' % os.path.join(REPO, 'docs', 'data', 'pile2000m_progress.csv')],
+                help='a pile run per solver variant: label, its progress.csv, ns per contact-sweep of its solve and '
+                     'step time over solve time (both from solver_bench.py --snapshot)')
+ap.add_argument('--dt', type=float, default=2e-4, help='time step of the pile runs [s]')
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'figures'))
 a = ap.parse_args()
 os.makedirs(a.out, exist_ok=True)
@@ -65,41 +67,54 @@ if series:
 # ns and the overhead (step over solve) from the quiet pile benchmark, sweeps(contacts) a power
 # law fitted to the run's sampled sweeps. The run's own wall times (shared machine, pauses for
 # benchmarks) are drawn for comparison.
-if os.path.exists(a.progress):
-    d = np.genfromtxt(a.progress, delimiter=',', names=True)
+def fit_run(path, ns, step_over_solve):
+    """Per-step wall times of a run, and the fitted model: sweeps = A·contacts^β on the
+    deposition (relaxation steps are cheaper), step = step_over_solve·ns·contacts·sweeps."""
+    d = np.genfromtxt(path, delimiter=',', names=True)
     t, c, sw, wall, g = d['time_s'], d['contacts'], d['sweeps'], d['wall_s'], d['grains']
     keep = np.diff(t) > 0
     per_step = np.diff(wall)[keep] / (np.diff(t)[keep] / a.dt)
     cm = 0.5 * (c[1:] + c[:-1])[keep]
-    ok = (c > 1000) & (sw > 0) & (g < g.max())  # the deposition only (relaxation steps are cheaper)
+    ok = (c > 1000) & (sw > 0) & (g < g.max())
     beta, log_a = np.polyfit(np.log(c[ok]), np.log(sw[ok]), 1)
     sweeps = lambda cc: np.exp(log_a) * np.asarray(cc, float) ** beta
-    step = lambda cc: a.step_over_solve * a.ns * 1e-9 * np.asarray(cc, float) * sweeps(cc)
+    step = lambda cc: step_over_solve * ns * 1e-9 * np.asarray(cc, float) * sweeps(cc)
+    k = float(np.sum(c * g) / np.sum(g * g))  # contacts per grain
+    return dict(cm=cm, per_step=per_step, c=c[ok], sw=sw[ok], beta=beta, sweeps=sweeps, step=step, k=k)
+
+
+runs = []
+for spec in a.run:
+    label, path, ns, sos = spec.rsplit(',', 3)
+    if not os.path.exists(path):
+        print('skipped (missing):', path)
+        continue
+    runs.append((label, float(ns), fit_run(path, float(ns), float(sos))))
+if runs:
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
     x = np.linspace(500, 33000, 200)
-    a1.plot(cm, per_step * 1e3, '.', ms=3, color='0.6', label='the run (shared machine)')
-    a1.plot(x, step(x) * 1e3, 'r-', label='model: %.1f ns × contacts × sweeps' % (a.ns * a.step_over_solve))
-    a1.plot(x, a.omega_gain * step(x) * 1e3, 'b--', label='same, relaxation ω = 1.8 (×%.2f)' % a.omega_gain)
+    for (label, ns, f), colour in zip(runs, ('r', 'b', 'g', 'm')):
+        a1.plot(f['cm'], f['per_step'] * 1e3, '.', ms=2, color=colour, alpha=0.3)
+        a1.plot(x, f['step'](x) * 1e3, '-', color=colour, label='%s: model (dots: the run, shared machine)' % label)
+        a2.loglog(f['c'], f['sw'], '.', ms=3, color=colour, alpha=0.4)
+        a2.loglog(x, f['sweeps'](x), '-', color=colour, label='%s: sweeps ∝ contacts^%.2f' % (label, f['beta']))
+        # The paper's full run, extrapolated (labelled so): contacts in proportion to grains,
+        # 1/(rate·dt) = 25 steps per grain, 14 000 grains, then no relaxation.
+        n = np.arange(1, 14001)
+        hours = 25 * f['step'](f['k'] * n).sum() / 3600
+        print('%s: sweeps ~ contacts^%.2f; model step at 33 000 contacts: %.2f s; contacts per grain %.2f; '
+              'extrapolated full 14 000-grain deposition (350 000 steps): %.0f h' % (label, f['beta'], f['step'](33000), f['k'], hours))
     a1.axvline(33000, color='k', ls=':', lw=0.8)
     a1.axhline(50, color='g', ls=':', lw=0.8)
     a1.set_yscale('log')
     a1.set_xlabel('contacts')
     a1.set_ylabel('wall time per step [ms]')
-    a1.set_title('Pile step cost, 1 thread, tolerance 1e-3')
-    a1.legend(fontsize=8)
-    a2.loglog(c[ok], sw[ok], '.', ms=4, label='sampled steps of the run')
-    a2.loglog(x, sweeps(x), 'r-', label='fit: sweeps ∝ contacts^%.2f' % beta)
+    a1.set_title('Pile step cost, 1 thread, tolerance 1e-3 (target 50 ms at 33 000)')
+    a1.legend(fontsize=7)
     a2.set_xlabel('contacts')
-    a2.set_ylabel('Gauss–Seidel sweeps per step')
-    a2.set_title('Sweeps to tolerance 1e-3')
-    a2.legend(fontsize=8)
+    a2.set_ylabel('sweeps per step')
+    a2.set_title('Sweeps to tolerance 1e-3 (sampled deposition steps)')
+    a2.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(os.path.join(a.out, 'perf_pile_cost.png'), dpi=120)
-    # The paper's full run, extrapolated (labelled so): contacts in proportion to grains (fitted
-    # on this run), 1/(rate·dt) = 25 steps per grain, 14 000 grains, then no relaxation.
-    k = float(np.sum(c * g) / np.sum(g * g))
-    n = np.arange(1, 14001)
-    hours = 25 * step(k * n).sum() / 3600
-    print('sweeps ~ contacts^%.2f; model step at 33 000 contacts: %.2f s (%.2f s with ω = 1.8)' % (beta, step(33000), a.omega_gain * step(33000)))
-    print('contacts per grain %.2f; extrapolated full 14 000-grain deposition (350 000 steps): %.0f h (%.0f h with ω = 1.8)'
-          % (k, hours, a.omega_gain * hours))
+    print('wrote perf_pile_cost.png')
