@@ -161,16 +161,18 @@ class TestMomentum(unittest.TestCase):
 
     def test_tall_column_target(self):
         """Issue target: a cold-started column of 160 spheres gets its floor force within 1e-3 of
-        the weight in at most a tenth of the sweeps plain Gauss–Seidel needs (measured: 1/113)."""
+        the weight in at most a tenth of the sweeps plain Gauss–Seidel needs for that (both at
+        tolerance 1e-4; at 1e-3 plain Gauss–Seidel is still 3.6e-3 off). Measured: 823 against
+        79 979 sweeps."""
         sweeps = {}
         for mom in (False, True):
-            sc = scenes.column(160, tolerance=1e-3, maxIter=200000, momentum=mom, warnUnconverged=False)
+            sc = scenes.column(160, tolerance=1e-4, maxIter=200000, momentum=mom, warnUnconverged=False)
             cd = yadecd.integrator()
             O.step()
             self.assertTrue(cd.converged)
             sweeps[mom] = cd.iterations
-        f = O.interactions[0, sc['ids'][0]].phys.normalForce[2]
-        self.assertLess(abs(f / (160 * sc['m'] * 9.81) - 1), 1e-3)
+            f = O.interactions[0, sc['ids'][0]].phys.normalForce[2]
+            self.assertLess(abs(f / (160 * sc['m'] * 9.81) - 1), 1e-3)
         self.assertLessEqual(10 * sweeps[True], sweeps[False])
 
 

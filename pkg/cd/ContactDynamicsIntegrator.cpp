@@ -701,7 +701,10 @@ void ContactDynamicsIntegrator::solveImpulses()
 	const bool coloured = sweepOrder == 4;
 	if (coloured) colourContacts();
 	if (momentum) startMomentum();
-	Real tNesterov = 1, lastChange = std::numeric_limits<Real>::infinity();
+	// Momentum restarts when a sweep changes the velocities more than restartGrowth times the
+	// sweep before. 1.2 rather than 1 lets momentum ride through small bumps (measured on pile
+	// steps: 109 and 178 sweeps against 313 and 234 with 1); the stall guard below falls back to 1.
+	Real tNesterov = 1, lastChange = std::numeric_limits<Real>::infinity(), restartGrowth = 1.2;
 	for (int it = 1; it <= maxIter; ++it) {
 		// Σ (W_NN |Δr|)²: the velocity changes this sweep made
 		const bool down   = sweepOrder == 3 || (sweepOrder == 2 && it % 2 == 0);
@@ -710,14 +713,16 @@ void ContactDynamicsIntegrator::solveImpulses()
 		// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
 		// are below the tolerance (a converged state barely changes), or when asked to record.
 		const bool quiet = math::sqrt(change) <= tolerance * scale;
-		// Over-relaxation is not safe with friction: once the sweeps stop contracting (the
-		// smallest change so far not improved for 50 sweeps), finish the step with plain GS.
-		if (omega != 1) {
-			if (change < 0.99 * bestChange) {
-				bestChange = change;
-				stalled    = 0;
-			} else if (++stalled >= 50)
-				omega = 1;
+		// Over-relaxation and a lenient momentum restart are not safe with friction: once the
+		// sweeps stop contracting (the smallest change so far not improved by 1% for 50 sweeps),
+		// finish the step with ω = 1 and momentum restarted at every growth.
+		if (change < 0.99 * bestChange) {
+			bestChange = change;
+			stalled    = 0;
+		} else if (++stalled >= 50 && (omega != 1 || restartGrowth != 1)) {
+			omega         = 1;
+			restartGrowth = 1;
+			tNesterov     = 1;
 		}
 		if (it == maxIter || ((quiet || recordResidual) && it % checkEvery == 0)) {
 			residual = computeResidual();
@@ -728,8 +733,8 @@ void ContactDynamicsIntegrator::solveImpulses()
 			}
 		}
 		if (momentum && it < maxIter) {
-			// adaptive restart: a sweep that changed more than the one before ends the momentum
-			if (change > lastChange) tNesterov = 1;
+			// adaptive restart: a sweep that changed clearly more than the one before ends the momentum
+			if (change > restartGrowth * lastChange) tNesterov = 1;
 			lastChange      = change;
 			const Real next = (1 + math::sqrt(1 + 4 * tNesterov * tNesterov)) / 2;
 			extrapolateImpulses((tNesterov - 1) / next);
