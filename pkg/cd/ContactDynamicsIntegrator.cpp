@@ -795,30 +795,20 @@ void ContactDynamicsIntegrator::extrapolateImpulses(Real beta)
 	}
 }
 
+// Pseudo-velocities during the correction: translations in the compact pseudoV, rotations in
+// the records (only general-path contacts make them).
 Vector3r ContactDynamicsIntegrator::localPseudoVelocity(const SolverContact& c) const
 {
-	const BodyRecord& b1 = records[c.b1];
-	const BodyRecord& b2 = records[c.b2];
-	return c.frame * ((b2.pv + b2.pw.cross(c.c2)) - (b1.pv + b1.pw.cross(c.c1)));
+	return c.frame * ((pseudoV[c.b2] + records[c.b2].pw.cross(c.c2)) - (pseudoV[c.b1] + records[c.b1].pw.cross(c.c1)));
 }
 
-// A normal pseudo-impulse change dP on contact k; a SphereContact's never makes rotations.
-void ContactDynamicsIntegrator::applyPseudoImpulse(long k, Real dP)
+void ContactDynamicsIntegrator::applyPseudoImpulse(const SolverContact& c, Real dP)
 {
-	if (hot[k].fast) {
-		const SphereContact& f = hot[k];
-		records[f.b2].pv += f.m2 * dP * f.n;
-		records[f.b1].pv -= f.m1 * dP * f.n;
-		return;
-	}
-	const SolverContact& c = contacts[k];
-	const Vector3r       P = c.frame.row(0).transpose() * dP;
-	BodyRecord&    r1 = records[c.b1];
-	BodyRecord&    r2 = records[c.b2];
-	r2.pv += bodies[c.b2].invM.cwiseProduct(P);
-	r2.pw += bodies[c.b2].invI * c.c2.cross(P);
-	r1.pv -= bodies[c.b1].invM.cwiseProduct(P);
-	r1.pw -= bodies[c.b1].invI * c.c1.cross(P);
+	const Vector3r P = c.frame.row(0).transpose() * dP;
+	pseudoV[c.b2] += bodies[c.b2].invM.cwiseProduct(P);
+	records[c.b2].pw += bodies[c.b2].invI * c.c2.cross(P);
+	pseudoV[c.b1] -= bodies[c.b1].invM.cwiseProduct(P);
+	records[c.b1].pw -= bodies[c.b1].invI * c.c1.cross(P);
 }
 
 // Stage 5: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
@@ -834,35 +824,55 @@ void ContactDynamicsIntegrator::correctPositions()
 	projectionIterations  = 0;
 	maxCorrectedOverlap   = 0;
 	// the velocity part of the end-of-step gap is fixed now: g_m + h/2 U_f,N
-	const long        nc = long(contacts.size());
-	std::vector<Real> gapF(nc);
+	const long nc = long(contacts.size());
+	corrections.resize(nc);
 	for (long k = 0; k < nc; ++k) {
-		const SolverContact& c = contacts[k];
-		gapF[k]                = c.gapM + 0.5 * h * localVelocity(c)[0];
-		maxCorrectedOverlap    = math::max(maxCorrectedOverlap, (-c.allowance - gapF[k]) / c.refR);
+		const SolverContact& c   = contacts[k];
+		CorrectionRow&       row = corrections[k];
+		row.overlap              = (-c.allowance - c.gapM - 0.5 * h * localVelocity(c)[0]) / c.refR;
+		maxCorrectedOverlap      = math::max(maxCorrectedOverlap, row.overlap);
 	}
 	if (maxCorrectedOverlap <= positionTolerance) return;
-	// normal pseudo-velocity of a contact; for a SphereContact the rotations never enter it
-	// (the lever arm is along n) and a normal pseudo-impulse never makes them
-	auto pseudoNormal = [&](long k) {
-		const SphereContact& f = hot[k];
-		if (f.fast) return f.n.dot(records[f.b2].pv - records[f.b1].pv);
-		return localPseudoVelocity(contacts[k])[0];
-	};
+	for (long k = 0; k < nc; ++k) {
+		const SolverContact& c   = contacts[k];
+		const SphereContact& f   = hot[k];
+		CorrectionRow&       row = corrections[k];
+		row.lag                  = 0.5 * h / c.refR;
+		row.gain                 = (2 / h) * c.refR / c.W(0, 0);
+		row.P                    = 0;
+		row.fast                 = f.fast;
+		row.b1 = c.b1, row.b2 = c.b2;
+		if (f.fast) row.n = f.n, row.m1 = f.m1, row.m2 = f.m2;
+	}
+	pseudoV.assign(bodies.size(), Vector3r::Zero());
 	for (int it = 1; it <= maxProjectionIter; ++it) {
 		Real worst = 0;
 		for (long j = 0; j < nc; ++j) {
-			const long     k    = it % 2 == 1 ? j : nc - 1 - j; // alternating, as the velocity sweeps
-			SolverContact& c    = contacts[k];
-			const Real     v    = (-c.allowance - gapF[k] - 0.5 * h * pseudoNormal(k)) / c.refR; // > 0: overlap beyond the allowance
-			worst               = math::max(worst, v);
-			const Real     Pnew = math::max(Real(0), c.P + (2 / h) * v * c.refR / c.W(0, 0));
-			applyPseudoImpulse(k, Pnew - c.P);
-			c.P = Pnew;
+			const long     k   = it % 2 == 1 ? j : nc - 1 - j; // alternating directions
+			CorrectionRow& row = corrections[k];
+			// normal pseudo-velocity; for a sphere contact rotations never enter it (the lever arm
+			// is along n) and a normal pseudo-impulse never makes them
+			const Real un   = row.fast ? row.n.dot(pseudoV[row.b2] - pseudoV[row.b1]) : localPseudoVelocity(contacts[k])[0];
+			const Real v    = row.overlap - row.lag * un; // > 0: overlap beyond the allowance
+			worst           = math::max(worst, v);
+			const Real Pnew = math::max(Real(0), row.P + row.gain * v);
+			const Real dP   = Pnew - row.P;
+			if (dP != 0) {
+				if (row.fast) {
+					pseudoV[row.b2] += row.m2 * dP * row.n;
+					pseudoV[row.b1] -= row.m1 * dP * row.n;
+				} else
+					applyPseudoImpulse(contacts[k], dP);
+			}
+			row.P = Pnew;
 		}
 		projectionIterations = it;
 		if (worst <= positionTolerance) break;
 	}
+	for (long k = 0; k < nc; ++k)
+		contacts[k].P = corrections[k].P;
+	for (size_t b = 0; b < bodies.size(); ++b)
+		records[b].pv = pseudoV[b];
 }
 
 // Stage 6: q_f = q_m + h/2 (u_f + ũ), with u_f written to the bodies. Kinematic bodies and

@@ -126,6 +126,19 @@ private:
 	std::vector<long>          colourStart; // coloured sweep: contacts of colour c are contacts[colourStart[c] .. colourStart[c+1])
 	std::vector<Real>          sweepChange;              // per contact, summed in a fixed order
 	std::vector<char>          statusChanged;
+	/*! One contact's row of the position correction: all that a correction sweep reads. */
+	struct CorrectionRow {
+		Vector3r n;       // normal (sphere-path rows)
+		Real     m1, m2;  // inverse masses (sphere-path rows; 0: obstacle)
+		Real     overlap; // (−a − g_f)/refR without pseudo-velocities: overlap beyond the allowance [-]
+		Real     lag;     // h/(2 refR): normal pseudo-velocity → relative overlap
+		Real     gain;    // (2/h) refR / W_NN: relative overlap → pseudo-impulse
+		Real     P;       // normal pseudo-impulse
+		int      b1, b2;
+		bool     fast;    // false: the general path through SolverContact
+	};
+	std::vector<CorrectionRow> corrections;
+	std::vector<Vector3r>      pseudoV;      // translational pseudo-velocities during the correction
 	std::vector<Vector3r>      rPrev;        // momentum: impulses after the previous sweep (per contact)
 	std::vector<Vector3r>      vPrev, wPrev; // momentum: body velocities after the previous sweep
 	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
@@ -158,7 +171,7 @@ private:
 	Real     orderedSweep(Real omega, bool up);
 	void     colourContacts();
 	Real     colouredSweep(Real omega);
-	void     applyPseudoImpulse(long k, Real dP);
+	void     applyPseudoImpulse(const SolverContact& c, Real dP);
 	Real     computeResidual();
 	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
 
