@@ -43,6 +43,7 @@ ap.add_argument('--scenes', nargs='+', default=None, help='only these scenes (%s
 ap.add_argument('--resume', action='store_true', help='keep rows already in the CSV, run only the missing ones')
 ap.add_argument('--plot-only', action='store_true', help='no runs: redraw from the CSV')
 ap.add_argument('--dry-run', action='store_true', help='list the runs and their step counts')
+ap.add_argument('--momentum', action='store_true', help='CD runs with momentum (default: pinned to plain Gauss–Seidel, as docs/compare.md was measured)')
 ap.add_argument('--max-wall', type=float, default=120.0, help='stop any single run after this many seconds of stepping')
 a = ap.parse_args(sys.argv[1:])
 CSV = a.csv or (os.path.join(REPO, 'out', 'compare_quick', 'compare.csv') if a.quick else os.path.join(REPO, 'docs', 'data', 'compare.csv'))
@@ -212,6 +213,8 @@ def run_all():
         p = dict(p)
         group = p.pop('group', 'accuracy')
         t0 = time.time()
+        if method == 'CD' and a.momentum:
+            p = dict(p, momentum=True)
         r = compare.run(scene, method, case, max_wall=a.max_wall, **p)
         r['group'] = group
         r['cd_build'] = build0 if method == 'CD' else ''

@@ -2,7 +2,7 @@
 the CD engine and with YADE's linear soft contacts at several stiffnesses, side by side.
 
     scripts/yade -n -x scripts/compare_pile.py [--grains 300] [--relax 0.5] [--out out/compare_pile]
-                                              [--cases cd,cd_loose,md_1e6,md_1e7,md_1e8] [--plot-only]
+                                              [--cases cd,cd_plain,cd_loose,md_1e6,md_1e7,md_1e8] [--plot-only]
 
 Every case builds the same protocol (same seed, so the same feed positions) and is analysed by
 the same pile analysis (yadecd.pile_figures.analyse). Recorded per case: wall time, steps, wall
@@ -26,13 +26,14 @@ parser.add_argument('--grains', type=int, default=300)
 parser.add_argument('--relax', type=float, default=0.5)
 parser.add_argument('--seed', type=int, default=1)
 parser.add_argument('--out', default=os.path.join(REPO, 'out', 'compare_pile'))
-parser.add_argument('--cases', default='cd,cd_loose,md_1e6,md_1e7,md_1e8')
+parser.add_argument('--cases', default='cd,cd_plain,cd_loose,md_1e6,md_1e7,md_1e8')
 parser.add_argument('--plot-only', action='store_true', help='redraw from OUT/compare_pile.csv')
 parser.add_argument('--docs', action='store_true', help='copy the CSV and figure into docs/')
 args = parser.parse_args(sys.argv[1:])
 
 CASES = {
     'cd': ('CD, tolerance 1e-3', dict(method='CD', tolerance=1e-3)),
+    'cd_plain': ('CD, tolerance 1e-3, plain Gauss–Seidel', dict(method='CD', tolerance=1e-3, momentum=False)),
     'cd_loose': ('CD, tolerance 1e-2', dict(method='CD', tolerance=1e-2)),
     'md_1e6': ('MD linear, E = 1e6 Pa', dict(method='MD', young=1e6)),
     'md_1e7': ('MD linear, E = 1e7 Pa', dict(method='MD', young=1e7)),

@@ -97,13 +97,16 @@ def to_md(young=1e7, safety=0.5, damping=0.0, law='linear', poisson=0.25, en=1.0
     return O.dt
 
 
-def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=1.0, **options):
+def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=1.0, momentum=False, **options):
     """Adjust the CD scene just built: time step, solver tolerance and maxIter, over-relaxation
-    (pinned to 1, plain Gauss–Seidel, unless given: the installed plugin's default may differ),
+    and momentum (pinned to 1 and off, plain Gauss–Seidel, unless given: the installed plugin's
+    defaults may differ; ``None`` keeps the plugin's default),
     restitution of contacts not yet created, other integrator attributes; unconverged-step
     warnings are silenced (they are counted in ``nUnconverged``, which :func:`run` reports)."""
     if relaxation is not None:
         options['relaxation'] = relaxation
+    if momentum is not None:
+        options['momentum'] = momentum
     cd = integrator()
     if dt is not None:
         O.dt = dt
@@ -521,7 +524,7 @@ SCENES = {c.name: c for c in (Incline, Column, MassRatio, Binary, Projectile, Cr
 def run(scene, method='CD', case=None, repeats=3, repeat_below=0.005, **params):
     """Build ``scene`` (a key of :data:`SCENES`) with ``case`` (dict of the scene's options,
     e.g. ``{'n': 40}``), using ``method`` 'CD' (``dt``, ``tolerance``, ``maxIter``,
-    ``relaxation``) or 'MD' (``young``, ``safety``, ``damping``, ``law``, ``en`` for Hertz), run
+    ``relaxation``, ``momentum``) or 'MD' (``young``, ``safety``, ``damping``, ``law``, ``en`` for Hertz), run
     it for the scene's simulated time (or ``T``), and return the measurements as a flat dict.
     ``max_wall`` [s] stops a run early (status 'drifts' unless it failed otherwise; 'note').
 
@@ -540,7 +543,7 @@ def run(scene, method='CD', case=None, repeats=3, repeat_below=0.005, **params):
 
 
 def run_once(scene, method='CD', case=None, dt=None, tolerance=1e-6, maxIter=100000, relaxation=1.0,
-             young=1e7, safety=0.5, damping=0.0, law='linear', en=None, T=None, max_wall=None):
+             momentum=False, young=1e7, safety=0.5, damping=0.0, law='linear', en=None, T=None, max_wall=None):
     """One run of :func:`run` (same arguments), not repeated."""
     case = dict(case or {})
     if T is not None:
@@ -553,7 +556,7 @@ def run_once(scene, method='CD', case=None, dt=None, tolerance=1e-6, maxIter=100
     if method == 'CD':
         if sc.name == 'projectile':
             en = 1.0
-        cd = set_cd(dt=dt, tolerance=tolerance, maxIter=maxIter, relaxation=relaxation)
+        cd = set_cd(dt=dt, tolerance=tolerance, maxIter=maxIter, relaxation=relaxation, momentum=momentum)
         row.update(law='CD', dt=O.dt, tolerance=tolerance, maxIter=maxIter, relaxation=cd.relaxation,
                    sweepOrder=cd.sweepOrder)
     elif method == 'MD':
