@@ -34,6 +34,21 @@ ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'figures'))
 a = ap.parse_args()
 os.makedirs(a.out, exist_ok=True)
 
+
+
+def decorate(ax, xlabel, ylabel, title, fontsize=8):
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=fontsize)
+
+
+def save(fig, name):
+    fig.tight_layout()
+    fig.savefig(os.path.join(a.out, name), dpi=120)
+    print('wrote', name)
+
+
 # --- ns per contact-sweep
 series = {}
 for path in a.bench:
@@ -55,13 +70,8 @@ if series:
         ax.loglog([p[0] for p in pts], [p[1] for p in pts], 'o-', label=name)
     ax.axhline(30, color='k', ls=':', lw=0.8)
     ax.text(ax.get_xlim()[0] * 1.1, 32, 'target 30 ns', fontsize=8)
-    ax.set_xlabel('contacts')
-    ax.set_ylabel('ns per contact per Gauss–Seidel sweep')
-    ax.set_title('Cost of one contact update (FCC blocks)')
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(os.path.join(a.out, 'perf_sweep.png'), dpi=120)
-    print('wrote perf_sweep.png')
+    decorate(ax, 'contacts', 'ns per contact per Gauss–Seidel sweep', 'Cost of one contact update (FCC blocks)')
+    save(fig, 'perf_sweep.png')
 
 # --- pile cost against contacts
 # Model (each factor measured): step = overhead × ns_per_contact_sweep × contacts × sweeps(contacts),
@@ -108,14 +118,6 @@ if runs:
     a1.axvline(33000, color='k', ls=':', lw=0.8)
     a1.axhline(50, color='g', ls=':', lw=0.8)
     a1.set_yscale('log')
-    a1.set_xlabel('contacts')
-    a1.set_ylabel('wall time per step [ms]')
-    a1.set_title('Pile step cost, 1 thread, tolerance 1e-3 (target 50 ms at 33 000)')
-    a1.legend(fontsize=7)
-    a2.set_xlabel('contacts')
-    a2.set_ylabel('sweeps per step')
-    a2.set_title('Sweeps to tolerance 1e-3 (sampled deposition steps)')
-    a2.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(os.path.join(a.out, 'perf_pile_cost.png'), dpi=120)
-    print('wrote perf_pile_cost.png')
+    decorate(a1, 'contacts', 'wall time per step [ms]', 'Pile step cost, 1 thread, tolerance 1e-3 (target 50 ms at 33 000)', 7)
+    decorate(a2, 'contacts', 'sweeps per step', 'Sweeps to tolerance 1e-3 (sampled deposition steps)', 7)
+    save(fig, 'perf_pile_cost.png')
