@@ -292,7 +292,6 @@ void ContactDynamicsIntegrator::gatherContacts()
 		// overlap the contact may keep: what it was born with, shrinking with the overlap
 		const Real overlap = math::max(Real(0), geom->penetrationDepth);
 		c.allowance        = std::isnan(phys->overlapAllowance) ? overlap : math::min(phys->overlapAllowance, overlap);
-		c.P      = 0;
 		contacts.push_back(c);
 	}
 	// Gauss–Seidel order: by height along −gravity (z without gravity), ties by ids; an upward
@@ -783,6 +782,10 @@ void ContactDynamicsIntegrator::extrapolateImpulses(Real beta)
 		Vector3r&      r    = fast ? hot[k].r : contacts[k].r;
 		const Vector3r x    = r;
 		if (x == rPrev[k]) continue; // unchanged (open contacts mostly): y = x
+		if (beta == 0) {             // a restart: y = x, already in its cone
+			rPrev[k] = x;
+			continue;
+		}
 		const Vector3r y  = x + beta * (x - rPrev[k]);
 		const Real     mu = fast ? hot[k].mu : contacts[k].mu;
 		rPrev[k]          = x;
@@ -869,8 +872,6 @@ void ContactDynamicsIntegrator::correctPositions()
 		projectionIterations = it;
 		if (worst <= positionTolerance) break;
 	}
-	for (long k = 0; k < nc; ++k)
-		contacts[k].P = corrections[k].P;
 	for (size_t b = 0; b < bodies.size(); ++b)
 		records[b].pv = pseudoV[b];
 }

@@ -87,7 +87,6 @@ public:
 		Real         mu, gapI, gapM, refR, allowance;
 		Real         height;  // contact point along −gravity: the sweep order
 		int          status;
-		Real         P;       // normal pseudo-impulse of the position correction
 	};
 
 	/*! The hot copy of a contact whose lever arms lie along the normal (c_b = l_b n, as for every
