@@ -7,7 +7,7 @@ import unittest
 
 import numpy as np
 
-from yade import O, Vector3, Matrix3
+from yade import O, Vector3, Matrix3, utils
 from yade.wrapper import ContactDynamicsIntegrator as CDI
 
 import yadecd
@@ -176,17 +176,36 @@ class TestMomentum(unittest.TestCase):
         self.assertLessEqual(10 * sweeps[True], sweeps[False])
 
 
-COLOURED_RUN = """
+PARALLEL_RUN = """
 import hashlib, numpy as np
 from yade import O
 from yadecd import scenes
 import yadecd
-scenes.fcc_block(1400, sweepOrder=4, maxIter=40, warnUnconverged=False)
+scenes.fcc_block(1400, sweepOrder=%d, maxIter=40, warnUnconverged=False)
 O.run(3, True)
 cd = yadecd.integrator()
 v = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
-print('RESULT', O.numThreads, cd.nColours, cd.nContacts, hashlib.sha1(v.tobytes()).hexdigest())
+print('RESULT', O.numThreads, cd.nColours, cd.nInterface, cd.nContacts, hashlib.sha1(v.tobytes()).hexdigest())
 """
+
+
+def run_with_threads(sweep_order, threads):
+    """PARALLEL_RUN in a fresh YADE with the given thread count (yade -jN): the fields of its
+    RESULT line (threads, colours, interface contacts, contacts, velocity hash)."""
+    import subprocess
+    import tempfile
+    import yade.config
+    exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
+    with tempfile.NamedTemporaryFile('w', suffix='.py', delete=False) as f:
+        f.write(PARALLEL_RUN % sweep_order)
+    try:
+        res = subprocess.run([exe, '-j%d' % threads, '-n', '-x', f.name], capture_output=True, text=True, timeout=300)
+    finally:
+        os.unlink(f.name)
+    line = [l for l in res.stdout.splitlines() if l.startswith('RESULT')]
+    if not line:
+        raise AssertionError(res.stdout[-2000:] + res.stderr[-2000:])
+    return line[0].split()[1:]
 
 
 class TestColouredSweep(unittest.TestCase):
@@ -206,23 +225,73 @@ class TestColouredSweep(unittest.TestCase):
     def test_bit_identical_for_any_thread_count(self):
         """The same coloured run with 1 and 2 threads (yade -j1, -j2; colours large enough to be
         swept in parallel) ends with bit-identical velocities."""
-        import subprocess
-        import sys
-        import tempfile
-        import yade.config
-        exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
-        with tempfile.NamedTemporaryFile('w', suffix='.py', delete=False) as f:
-            f.write(COLOURED_RUN)
         out = {}
         for j in (1, 2):
-            res = subprocess.run([exe, '-j%d' % j, '-n', '-x', f.name], capture_output=True, text=True, timeout=300)
-            line = [l for l in res.stdout.splitlines() if l.startswith('RESULT')]
-            self.assertTrue(line, res.stdout[-2000:] + res.stderr[-2000:])
-            threads, colours, contacts, digest = line[0].split()[1:]
+            threads, colours, _, contacts, digest = run_with_threads(4, j)
             self.assertEqual(int(threads), j)
             self.assertGreater(int(contacts) / int(colours), 64)  # colours big enough to go parallel
             out[j] = digest
-        os.unlink(f.name)
+        self.assertEqual(out[1], out[2])
+
+
+class TestSlabSweep(unittest.TestCase):
+    """sweepOrder=5: slabs swept upwards in parallel, then the interface between them."""
+
+    def columns(self, n_columns, height, **opts):
+        """Separate columns of spheres on a wall, in a row along x: no body touches two of them.
+        Returns a sphere's mass."""
+        O.reset()
+        r, mat = 0.01, scenes.material(0.3)
+        O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+        for c in range(n_columns):
+            for k in range(height):
+                O.bodies.append(utils.sphere((3 * r * c, 0, r + 2 * r * k), r, material=mat))
+        O.engines = yadecd.engines(gravity=(0, 0, -9.81), **opts)
+        O.dt = 1e-4
+        return O.bodies[1].state.mass
+
+    def test_separate_columns_need_no_interface_and_are_exact(self):
+        """Four columns of 10, two slabs: each slab holds two whole columns (no interface), and
+        every floor force is the column's weight to 1e-9."""
+        m = self.columns(4, 10, sweepOrder=5, slabs=2, tolerance=1e-12, maxIter=200000)
+        O.step()
+        cd = yadecd.integrator()
+        self.assertTrue(cd.converged)
+        self.assertEqual(cd.nInterface, 0)
+        for c in range(4):
+            f = O.interactions[0, 1 + 10 * c].phys.normalForce[2]
+            self.assertAlmostEqual(f / (10 * m * 9.81), 1.0, delta=1e-9)
+
+    def test_same_step_as_height_order(self):
+        """From the same state of a loose packing (sticking, sliding and open contacts), one step
+        solved tightly in three slabs (with an interface) and in plain height order gives the
+        same velocities."""
+        scenes.random_loose_packing(n=20, tolerance=1e-12, maxIter=100000)
+        O.run(250, True)
+        O.saveTmp('slabs')
+        out = {}
+        for order in (1, 5):
+            O.loadTmp('slabs')
+            cd = yadecd.integrator()
+            cd.sweepOrder, cd.slabs = order, 3
+            O.step()
+            self.assertTrue(cd.converged)
+            if order == 5:
+                self.assertGreater(cd.nInterface, 0)
+                self.assertLess(cd.nInterface, cd.nContacts)
+            out[order] = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
+        self.assertLess(np.abs(out[5] - out[1]).max(), 1e-9 * max(np.abs(out[1]).max(), 1e-3))
+
+    def test_bit_identical_for_any_thread_count(self):
+        """The same slab run with 1 and 2 threads (yade -j1, -j2; slabs large enough to be swept
+        in parallel) ends with bit-identical velocities."""
+        out = {}
+        for j in (1, 2):
+            threads, _, interface, contacts, digest = run_with_threads(5, j)
+            self.assertEqual(int(threads), j)
+            self.assertGreater(int(contacts) - int(interface), 512)  # slabs big enough to go parallel
+            self.assertGreater(int(interface), 0)
+            out[j] = digest
         self.assertEqual(out[1], out[2])
 
 

@@ -62,7 +62,8 @@ void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 	if (!(alertSpeedFactor >= 1)) bad("alertSpeedFactor=" + std::to_string(alertSpeedFactor) + ": must be ≥ 1, or contacts closing within a step are missed.");
 	if (!(positionTolerance > 0)) bad("positionTolerance=" + std::to_string(positionTolerance) + ": must be a positive number.");
 	if (!(relaxation > 0 && relaxation < 2)) bad("relaxation=" + std::to_string(relaxation) + ": must lie in (0, 2).");
-	if (sweepOrder < 0 || sweepOrder > 4) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 0, 1, 2, 3 or 4.");
+	if (sweepOrder < 0 || sweepOrder > 5) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 0, 1, 2, 3, 4 or 5.");
+	if (slabs < 1 || slabs > 64) bad("slabs=" + std::to_string(slabs) + ": must lie in 1..64.");
 	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
 }
 
@@ -585,18 +586,46 @@ CD_HOT Real ContactDynamicsIntegrator::updateContact(long idx, Real omega, bool&
 	return d;
 }
 
+// Contacts [begin, end) updated in turn: returns Σ(W_NN|Δr|)², adds status changes to nChanged.
+CD_HOT Real ContactDynamicsIntegrator::sweepRange(long begin, long end, Real omega, int& nChanged)
+{
+	Real change = 0;
+	for (long k = begin; k < end; ++k) {
+		bool changed;
+		change += updateContact(k, omega, changed);
+		nChanged += changed;
+	}
+	return change;
+}
+
 // A sequential sweep in the contacts' order (up) or the reverse.
 Real ContactDynamicsIntegrator::orderedSweep(Real omega, bool up)
 {
-	Real       change = 0;
-	const long nc     = long(contacts.size());
-	nStatusChanges    = 0;
-	for (long k = 0; k < nc; ++k) {
+	const long nc  = long(contacts.size());
+	nStatusChanges = 0;
+	if (up) return sweepRange(0, nc, omega, nStatusChanges);
+	Real change = 0;
+	for (long k = nc - 1; k >= 0; --k) {
 		bool changed;
-		change += updateContact(up ? k : nc - 1 - k, omega, changed);
+		change += updateContact(k, omega, changed);
 		nStatusChanges += changed;
 	}
 	return change;
+}
+
+// Store contacts (and their hot copies) in the given order: contacts[j] ← contacts[order[j]].
+void ContactDynamicsIntegrator::permuteContacts(const std::vector<long>& order)
+{
+	std::vector<SolverContact> sorted;
+	std::vector<SphereContact> hotSorted;
+	sorted.reserve(contacts.size());
+	hotSorted.reserve(contacts.size());
+	for (long k : order) {
+		sorted.push_back(std::move(contacts[k]));
+		hotSorted.push_back(hot[k]);
+	}
+	contacts.swap(sorted);
+	hot.swap(hotSorted);
 }
 
 // Greedy colouring in the contacts' (height) order, then the contacts reordered by colour: the smallest colour not yet taken by a
@@ -635,16 +664,7 @@ void ContactDynamicsIntegrator::colourContacts()
 			const SolverContact &ca = contacts[a], &cb = contacts[b];
 			return ca.b1 < cb.b1 || (ca.b1 == cb.b1 && ca.b2 < cb.b2);
 		});
-	std::vector<SolverContact> byColour;
-	std::vector<SphereContact> hotByColour;
-	byColour.reserve(contacts.size());
-	hotByColour.reserve(contacts.size());
-	for (long k : order) {
-		byColour.push_back(std::move(contacts[k]));
-		hotByColour.push_back(hot[k]);
-	}
-	contacts.swap(byColour);
-	hot.swap(hotByColour);
+	permuteContacts(order);
 	nColours = 0;
 	for (int c = 0; c <= maxColours; ++c)
 		if (count[c]) nColours = c + 1;
@@ -678,6 +698,82 @@ Real ContactDynamicsIntegrator::colouredSweep(Real omega)
 	return change;
 }
 
+// Slabs (sweepOrder 5): the contact points cut, across the wider horizontal extent, into
+// `slabs` slabs of equal contact counts. A contact is inner when each of its dynamic bodies has
+// all its contacts in the contact's slab; inner contacts of different slabs then share no body
+// and their slabs can be swept at the same time. The rest (contacts of bodies that straddle a
+// cut) form the interface, swept after the slabs. Height order is kept within every group.
+void ContactDynamicsIntegrator::partitionSlabs()
+{
+	const long     nc = long(contacts.size());
+	const int      ns = slabs;
+	const Vector3r up = gravity.squaredNorm() > 0 ? Vector3r(-gravity.normalized()) : Vector3r::UnitZ();
+	auto point = [this](long k) -> const Vector3r& { return static_cast<ScGeom*>(contacts[k].I->geom.get())->contactPoint; };
+	int  axis  = 0;
+	Real width = -1;
+	for (int a = 0; a < 3; ++a) {
+		if (math::abs(up[a]) > 0.5) continue; // along gravity: not a horizontal axis
+		Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
+		for (long k = 0; k < nc; ++k)
+			lo = math::min(lo, point(k)[a]), hi = math::max(hi, point(k)[a]);
+		if (hi - lo > width) width = hi - lo, axis = a;
+	}
+	std::vector<Real> x(nc);
+	for (long k = 0; k < nc; ++k)
+		x[k] = point(k)[axis];
+	std::vector<Real> sorted(x);
+	std::sort(sorted.begin(), sorted.end());
+	std::vector<Real> cut(ns - 1);
+	for (int s = 1; s < ns; ++s)
+		cut[s - 1] = sorted[size_t(s) * nc / ns];
+	std::vector<int>      group(nc);
+	std::vector<uint64_t> touched(bodies.size(), 0);
+	for (long k = 0; k < nc; ++k) {
+		group[k]     = int(std::upper_bound(cut.begin(), cut.end(), x[k]) - cut.begin());
+		const int b1 = contacts[k].b1, b2 = contacts[k].b2;
+		if (records[b1].dynamic) touched[b1] |= uint64_t(1) << group[k];
+		if (records[b2].dynamic) touched[b2] |= uint64_t(1) << group[k];
+	}
+	std::vector<long> count(ns + 1, 0);
+	for (long k = 0; k < nc; ++k) {
+		const uint64_t own = uint64_t(1) << group[k];
+		const int      b1 = contacts[k].b1, b2 = contacts[k].b2;
+		if ((records[b1].dynamic && touched[b1] != own) || (records[b2].dynamic && touched[b2] != own)) group[k] = ns;
+		++count[group[k]];
+	}
+	blockStart.assign(ns + 2, 0);
+	for (int g = 0; g <= ns; ++g)
+		blockStart[g + 1] = blockStart[g] + count[g];
+	std::vector<long> next(blockStart.begin(), blockStart.end() - 1), order(nc);
+	for (long k = 0; k < nc; ++k)
+		order[next[group[k]]++] = k;
+	permuteContacts(order);
+	nInterface = int(count[ns]);
+	blockChange.assign(ns, 0);
+	blockStatus.assign(ns, 0);
+}
+
+// A slab sweep: the slabs in parallel, each upwards, then the interface. Sums are taken slab
+// by slab in a fixed order: the result, bit for bit, does not depend on the number of threads.
+Real ContactDynamicsIntegrator::slabSweep(Real omega)
+{
+	const int ns = int(blockStart.size()) - 2;
+#pragma omp parallel for schedule(static, 1) if (ns > 1 && blockStart[ns] >= 256)
+	for (int s = 0; s < ns; ++s) {
+		int n          = 0;
+		blockChange[s] = sweepRange(blockStart[s], blockStart[s + 1], omega, n);
+		blockStatus[s] = n;
+	}
+	Real change    = 0;
+	nStatusChanges = 0;
+	for (int s = 0; s < ns; ++s) {
+		change += blockChange[s];
+		nStatusChanges += blockStatus[s];
+	}
+	return change + sweepRange(blockStart[ns], blockStart[ns + 1], omega, nStatusChanges);
+}
+
+
 // Stage 4b: nonlinear Gauss–Seidel over contacts. Each contact in turn: its local velocity
 // without its own impulse, b = U − W r; the exact local solve of Ũ = A(W r + b + s); the
 // impulse change applied to both bodies at once.
@@ -697,8 +793,9 @@ void ContactDynamicsIntegrator::solveImpulses()
 	const Real scale = qNorm > 0 ? qNorm : Real(1);
 	Real omega = relaxation, bestChange = std::numeric_limits<Real>::infinity();
 	int  stalled = 0;
-	const bool coloured = sweepOrder == 4;
+	const bool coloured = sweepOrder == 4, slabbed = sweepOrder == 5;
 	if (coloured) colourContacts();
+	if (slabbed) partitionSlabs();
 	if (momentum) startMomentum();
 	// Momentum restarts when a sweep changes the velocities more than restartGrowth times the
 	// sweep before. 1.2 rather than 1 lets momentum ride through small bumps (measured on pile
@@ -707,7 +804,7 @@ void ContactDynamicsIntegrator::solveImpulses()
 	for (int it = 1; it <= maxIter; ++it) {
 		// Σ (W_NN |Δr|)²: the velocity changes this sweep made
 		const bool down   = sweepOrder == 3 || (sweepOrder == 2 && it % 2 == 0);
-		const Real change = coloured ? colouredSweep(omega) : orderedSweep(omega, !down);
+		const Real change = coloured ? colouredSweep(omega) : slabbed ? slabSweep(omega) : orderedSweep(omega, !down);
 		iterations = it;
 		// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
 		// are below the tolerance (a converged state barely changes), or when asked to record.
@@ -769,7 +866,9 @@ void ContactDynamicsIntegrator::startMomentum()
 
 void ContactDynamicsIntegrator::extrapolateImpulses(Real beta)
 {
-	for (size_t b = 0; b < bodies.size(); ++b) { // obstacles: v = vPrev (never written), unchanged
+	const long nb = long(bodies.size());
+#pragma omp parallel for schedule(static) if (nb >= 4096)
+	for (long b = 0; b < nb; ++b) { // obstacles: v = vPrev (never written), unchanged
 		SolverBody&    B = bodies[b];
 		const Vector3r v = B.v, w = B.w;
 		B.v += beta * (v - vPrev[b]);
@@ -777,7 +876,22 @@ void ContactDynamicsIntegrator::extrapolateImpulses(Real beta)
 		vPrev[b] = v;
 		wPrev[b] = w;
 	}
-	for (size_t k = 0; k < contacts.size(); ++k) {
+	if (sweepOrder != 5) {
+		extrapolateRange(0, long(contacts.size()), beta);
+		return;
+	}
+	const int ns = int(blockStart.size()) - 2; // slabs: as in the sweep, slabs in parallel, then the interface
+#pragma omp parallel for schedule(static, 1) if (ns > 1 && blockStart[ns] >= 256)
+	for (int s = 0; s < ns; ++s)
+		extrapolateRange(blockStart[s], blockStart[s + 1], beta);
+	extrapolateRange(blockStart[ns], blockStart[ns + 1], beta);
+}
+
+// The contact part of the extrapolation for contacts [begin, end): y = x + β(x − x_prev); where
+// y leaves the cone, its projection, whose impulse is applied to the two bodies.
+void ContactDynamicsIntegrator::extrapolateRange(long begin, long end, Real beta)
+{
+	for (long k = begin; k < end; ++k) {
 		const bool     fast = hot[k].fast;
 		Vector3r&      r    = fast ? hot[k].r : contacts[k].r;
 		const Vector3r x    = r;

@@ -123,6 +123,9 @@ private:
 	std::vector<SolverContact> contacts;
 	std::vector<SphereContact> hot; // parallel to contacts
 	std::vector<long>          colourStart; // coloured sweep: contacts of colour c are contacts[colourStart[c] .. colourStart[c+1])
+	std::vector<long>          blockStart;  // slab sweep: slab s is contacts[blockStart[s] .. blockStart[s+1]), the interface the last range
+	std::vector<Real>          blockChange; // slab sweep: per slab, the sweep's Σ(W_NN|Δr|)²
+	std::vector<int>           blockStatus; // slab sweep: per slab, status changes
 	std::vector<Real>          sweepChange;              // per contact, summed in a fixed order
 	std::vector<char>          statusChanged;
 	/*! One contact's row of the position correction: all that a correction sweep reads. */
@@ -167,9 +170,14 @@ private:
 	Vector3r updateGeneralContact(SolverContact& c, Real omega);
 	void     syncHotContacts();
 	Real     updateContact(long idx, Real omega, bool& changed);
+	Real     sweepRange(long begin, long end, Real omega, int& nChanged);
 	Real     orderedSweep(Real omega, bool up);
+	void     permuteContacts(const std::vector<long>& order);
 	void     colourContacts();
 	Real     colouredSweep(Real omega);
+	void     partitionSlabs();
+	Real     slabSweep(Real omega);
+	void     extrapolateRange(long begin, long end, Real beta);
 	void     applyPseudoImpulse(const SolverContact& c, Real dP);
 	Real     computeResidual();
 	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
@@ -182,7 +190,8 @@ public:
 		((int, maxIter, 1000, Attr::triggerPostLoad, "Maximum number of Gauss–Seidel sweeps per step. A step that stops here unconverged warns and counts in :yref:`nUnconverged<ContactDynamicsIntegrator.nUnconverged>`."))
 		((int, checkEvery, 1, Attr::triggerPostLoad, "Evaluate the exact residual (a pass that costs about one sweep) at most every this many sweeps, and only after a sweep whose own velocity changes sqrt(Σ(W_NN|Δr|)²) fell below tolerance·‖q‖ (or every checked sweep with recordResidual)."))
 		((Real, relaxation, 1.0, Attr::triggerPostLoad, "Over-relaxation ω of each local update, r ← P_C(r + ω(r_local − r)), in (0, 2); 1 is plain Gauss–Seidel. Open contacts always take r_local = 0. Once a step's sweeps stop contracting (no 1% improvement of the sweep's velocity change in 50 sweeps) the step finishes with ω = 1, since over-relaxation is not safe with friction. Measured: ω = 1.95 takes 27× fewer sweeps than ω = 1 on a 160-sphere column, ω = 1.3–1.6 about 14% less time on a pile; but with ω ≠ 1 even a single contact is solved only to the tolerance, not exactly in one sweep (see docs/results.md)."))
-		((int, sweepOrder, 1, Attr::triggerPostLoad, "Order of the Gauss–Seidel sweeps: 0 by body ids (id1, id2); 1 by contact height along −gravity, upwards; 2 by height, alternating upwards and downwards; 3 by height, downwards; 4 coloured: contacts grouped into colours that share no dynamic body (greedy, in height order) and swept colour by colour, the contacts of a colour updated in parallel by O.numThreads threads (yade -j N) — the result is bit-identical for any thread count. Every order is deterministic."))
+		((int, sweepOrder, 1, Attr::triggerPostLoad, "Order of the Gauss–Seidel sweeps: 0 by body ids (id1, id2); 1 by contact height along −gravity, upwards; 2 by height, alternating upwards and downwards; 3 by height, downwards; 4 coloured: contacts grouped into colours that share no dynamic body (greedy, in height order) and swept colour by colour, the contacts of a colour updated in parallel by O.numThreads threads (yade -j N) — the result is bit-identical for any thread count; 5 slabs: the scene cut into :yref:`slabs<ContactDynamicsIntegrator.slabs>` vertical slabs of equal contact counts across its wider horizontal extent, each slab's inner contacts swept upwards by height, the slabs in parallel (O.numThreads threads), then the contacts of the bodies that touch two slabs, upwards by height, by one thread — bit-identical for any thread count, and keeps the upward order that piles need. Every order is deterministic."))
+		((int, slabs, 2, Attr::triggerPostLoad, "Number of slabs of sweepOrder 5 (1–64): the most threads that order can use. Fixed by the user, not by the thread count, so that results do not depend on the threads. More slabs make the sequential interface larger (the contacts of the bodies that straddle a cut)."))
 		((Real, alertRatio, 0.05, Attr::triggerPostLoad, "Alert distance, static part, relative to the smaller radius of a pair [-]. A pair becomes a contact when its gap is below alertRatio·min(r1,r2) + alertSpeedFactor·dt·(|v1|+|v2|)."))
 		((Real, alertSpeedFactor, 2.0, Attr::triggerPostLoad, "Alert distance, speed part: how many steps' worth of travel at the current speed a pair is watched ahead [-]. Must be ≥ 1 so that no contact closing within a step is missed (no tunnelling)."))
 		((Real, positionTolerance, 1e-6, Attr::triggerPostLoad, "Position correction: largest overlap beyond a contact's allowance left at the end of a step, relative to the contact's reference radius [-]. Smaller values cost more correction sweeps in dense packings (the correction is a Gauss–Seidel too)."))
@@ -201,6 +210,7 @@ public:
 		((int, nStatusChanges, 0, Attr::readonly, "Contacts whose status changed during the last sweep of the last step. |yupdate|"))
 		((int, projectionIterations, 0, Attr::readonly, "Sweeps of the position correction in the last step (0: nothing to correct). |yupdate|"))
 		((Real, maxCorrectedOverlap, 0, Attr::readonly, "Largest overlap the last step created before correction, relative to the reference radius [-]. |yupdate|"))
+		((int, nInterface, 0, (Attr::readonly | Attr::noSave), "Contacts of the last step's slab sweep (sweepOrder 5) in the sequential interface between slabs. |yupdate|"))
 		((int, nColours, 0, (Attr::readonly | Attr::noSave), "Colours of the last step's coloured sweep (sweepOrder 4; 65 means some contacts fell in the sequential overflow group). |yupdate|"))
 		((vector<Real>, residualHistory, , Attr::readonly, "Residual after each checked sweep of the last step, if :yref:`recordResidual<ContactDynamicsIntegrator.recordResidual>`. |yupdate|"))
 		((int, contactDissipIx, -1, (Attr::hidden | Attr::noSave), "Energy index: contact dissipation."))

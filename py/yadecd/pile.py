@@ -173,6 +173,75 @@ def scene_from_snapshot(path, **overrides):
     return p
 
 
+def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, log=print, **overrides):
+    """A large pile state for solver benchmarks, built in minutes instead of by deposition.
+
+    Grains of the protocol's diameter law in a dense random packing (YADE's
+    ``pack.randomDensePack``, periodic compression of 2000 spheres, tiled) are cut to a cone of
+    slope ``slope_deg`` and base radius sized for about ``n_grains`` grains, set on the paving
+    (base at z = d_max, just above it) and settled by the CD engine for ``settle`` seconds of
+    simulated time. Writes ``run.json`` and ``snap_<t>.npz`` in ``run_dir`` (the format of
+    :func:`run`'s snapshots, so ``scripts/bench/solver_bench.py --snapshot`` takes it) and returns
+    the snapshot's path.
+
+    It stands in for the end state of the paper's deposition (14 000 grains, about 33 000
+    contacts), which deposition would take about 40 h to reach here (docs/performance.md). Its
+    history differs (no layers, no feeding, a denser start): a benchmark state, not a result."""
+    from yade import pack
+    p = dict(DEFAULTS)
+    p.update({k: v for k, v in overrides.items() if v is not None})
+    unknown = set(p) - set(DEFAULTS)
+    if unknown:
+        raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
+    if n_grains < 10 or not (5.0 <= slope_deg <= 40.0) or settle < 0:
+        raise ValueError('cone_state needs n_grains >= 10, 5 <= slope_deg <= 40 and settle >= 0 (got %r, %r, %r)'
+                         % (n_grains, slope_deg, settle))
+    p['n_grains'] = n_grains
+    os.makedirs(run_dir, exist_ok=True)
+    tan_s, cos_s = math.tan(math.radians(slope_deg)), math.cos(math.radians(slope_deg))
+    guess = expected_base_radius(n_grains, p['d_min'], p['d_max'], slope_deg, packing=0.62)
+    r_mean, fuzz = (p['d_min'] + p['d_max']) / 4, (p['d_max'] - p['d_min']) / (p['d_max'] + p['d_min'])
+    t0 = time.time()
+    side = 1.3 * guess  # a box with room for the cone, whatever the packing fraction turns out to be
+    packing = pack.randomDensePack(pack.inAlignedBox((-side, -side, 0), (side, side, side * tan_s)), radius=r_mean,
+                                   rRelFuzz=fuzz, spheresInCell=2000, returnSpherePack=True, seed=p['seed'])
+    centres = np.array([tuple(c) for c, r in packing])
+    radii = np.array([r for c, r in packing])
+
+    def inside(radius):  # grains wholly inside the cone of base radius `radius` standing on z = 0
+        rho = np.hypot(centres[:, 0], centres[:, 1])
+        return (centres[:, 2] >= radii) & (rho <= (radius * tan_s - centres[:, 2] - radii / cos_s) / tan_s)
+
+    lo, hi = 0.2 * guess, side  # the base radius that holds n_grains grains, by bisection
+    for _ in range(40):
+        radius = 0.5 * (lo + hi)
+        lo, hi = (radius, hi) if inside(radius).sum() < n_grains else (lo, radius)
+    radius = hi
+    grains = [(centres[k], radii[k]) for k in np.flatnonzero(inside(radius))]
+    log('cone_state: %d grains in a cone of radius %.2f cm, height %.2f cm (dense packing of %d grains: %.0f s)'
+        % (len(grains), 100 * radius, 100 * radius * tan_s, len(radii), time.time() - t0))
+    z0 = p['d_max']  # the paving's grains reach z = 2 r ≤ d_max
+    p['floor_radius'] = p['floor_radius'] or 1.3 * radius
+    p['n_paving'] = build_scene(p)
+    mat = O.materials[0]
+    for c, r in grains:
+        O.bodies.append(utils.sphere((c[0], c[1], c[2] + z0), r, material=mat))
+    p.update(n_grains=len(grains), cone_slope_deg=slope_deg, cone_settle_s=settle)
+    with open(os.path.join(run_dir, 'run.json'), 'w') as f:
+        json.dump(p, f, indent=1)
+    steps, t1 = int(round(settle / p['dt'])), time.time()
+    chunk = max(1, steps // 20)
+    while O.iter < steps:
+        O.run(min(chunk, steps - O.iter), True)
+        contacts, sweeps, residual = solver_stats()
+        speed = max(b.state.vel.norm() for b in O.bodies if b.dynamic)
+        log('cone_state: t=%.4f s  contacts %d  sweeps %d  residual %.1e  %.2f s/step  fastest grain %.2e m/s'
+            % (O.time, contacts, sweeps, residual, (time.time() - t1) / O.iter, speed))
+    path = os.path.join(run_dir, 'snap_%08.3f.npz' % O.time)
+    snapshot(path, {}, p)
+    return path
+
+
 # ----------------------------------------------------------------------------- creation rule
 
 def creation_height(x, y, r, centres, radii):

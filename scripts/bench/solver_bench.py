@@ -17,7 +17,9 @@ Measurements (one run, one machine: compare rows of the same run, as ratios):
   physics functors, and the integrator's stages), at the default tolerance, on the block and,
   with ``--snapshot``, on pile states rebuilt from a pile run's snapshots (warm-started steps),
   with the default solver (momentum) and with plain Gauss–Seidel, its general path and ω = 1.8,
-  and the coloured sweep: sweeps per step and cost against contacts.
+  the coloured sweep and the slab sweep (``sweepOrder=5``, parallel over slabs; its velocity hash
+  after the timed steps must not depend on the thread count): sweeps per step and cost against
+  contacts. ``--pile-variants`` picks the variants (large states: plain GS takes seconds a step).
 - ``CD momentum`` sweep rows: a sweep plus the momentum extrapolation pass.
 Each row records machine, threads, commit and date.
 """
@@ -43,11 +45,23 @@ parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--contacts', default='1e3,1e4,1e5', help='target contact counts of the FCC blocks')
 parser.add_argument('--snapshot', nargs='*', default=[], help='pile snapshots .npz for the per-stage breakdown on pile states (several: sweeps and cost against contacts)')
 parser.add_argument('--pile-steps', type=int, default=20, help='steps timed on the pile state')
+parser.add_argument('--pile-variants', default='plain,general,relaxation,coloured,slabs',
+                    help='solver variants timed on pile states besides the default: comma-separated subset of plain,general,relaxation,coloured,slabs')
 parser.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'solver_bench.csv'))
 parser.add_argument('--quick', action='store_true', help='fewer sweeps (a smoke run)')
 parser.add_argument('--no-siconos', action='store_true')
 args = parser.parse_args(sys.argv[1:])
 
+PILE_VARIANTS = {
+    'plain': ('CD plain GS', dict(momentum=False)),
+    'general': ('CD plain GS general path', dict(momentum=False, sphereFastPath=False)),
+    'relaxation': ('CD plain GS relaxation 1.8', dict(momentum=False, relaxation=1.8)),
+    'coloured': ('CD coloured', dict(sweepOrder=4)),
+    'slabs': ('CD slabs', dict(sweepOrder=5)),
+}
+unknown = set(v for v in args.pile_variants.split(',') if v) - set(PILE_VARIANTS)
+if unknown:
+    raise ValueError('--pile-variants: unknown %s (known: %s)' % (', '.join(sorted(unknown)), ', '.join(PILE_VARIANTS)))
 K1, K2 = (5, 15) if args.quick else (20, 120)
 
 
@@ -108,6 +122,10 @@ def siconos_time(pb, sweeps):
     return s['seconds']
 
 
+def velocity_digest():
+    return hashlib.sha1(np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies]).tobytes()).hexdigest()[:16]
+
+
 def breakdown(scene, steps, method='CD'):
     """Mean wall time per step of each engine and integrator stage over ``steps`` steps."""
     cd = yadecd.integrator()
@@ -163,7 +181,7 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     # determinism: a fixed coloured run from the same scene, hashed (compare across -j)
     scenes.fcc_block(target / 6.2, warnUnconverged=False, sweepOrder=4, maxIter=200)
     O.run(5, True)
-    digest = hashlib.sha1(np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies]).tobytes()).hexdigest()[:16]
+    digest = velocity_digest()
     record(kind='determinism', scene='fcc_block', bodies=len(O.bodies), contacts=yadecd.integrator().nContacts, method='CD coloured',
            quantity='sha1 of velocities after 5 steps', value=digest, unit='')
 
@@ -175,13 +193,18 @@ for snapshot in args.snapshot:
     O.run(20, True)  # rebuild contacts and warm start (snapshots hold no impulses)
     O.saveTmp('bench')
     breakdown('pile ' + os.path.basename(snapshot), args.pile_steps)
-    # the same steps again: plain Gauss–Seidel, general path, over-relaxation, coloured sweep
-    for method, attrs in (('CD plain GS', dict(momentum=False)), ('CD plain GS general path', dict(momentum=False, sphereFastPath=False)),
-                          ('CD plain GS relaxation 1.8', dict(momentum=False, relaxation=1.8)), ('CD coloured', dict(sweepOrder=4))):
+    # the same steps again: plain Gauss–Seidel, general path, over-relaxation, coloured and slab sweeps
+    for key in [v for v in args.pile_variants.split(',') if v]:
+        method, attrs = PILE_VARIANTS[key]
         O.loadTmp('bench')
         O.timingEnabled = True
         for k, v in attrs.items():
             setattr(yadecd.integrator(), k, v)
         breakdown('pile ' + os.path.basename(snapshot), args.pile_steps, method=method)
+        if key == 'slabs':  # determinism: the slab sweep's velocities after the timed steps (compare across -j)
+            cd = yadecd.integrator()
+            record(kind='determinism', scene='pile ' + os.path.basename(snapshot), bodies=len(O.bodies), contacts=cd.nContacts,
+                   method=method, quantity='sha1 of velocities after %d steps' % args.pile_steps, value=velocity_digest(),
+                   unit='interface %d contacts' % cd.nInterface)
 
 print('wrote', args.out)
