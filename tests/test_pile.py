@@ -135,6 +135,55 @@ class TestTinyPile(unittest.TestCase):
         self.assertTrue(0 < saved['floor_load_over_weight'] <= 1.05)
 
 
+class TestConeState(unittest.TestCase):
+    """yadecd.pile.cone_state, the benchmark's large pile state, and the solver benchmark on it
+    (fed by the creation rule, slab sweep on two threads: the harness must keep running)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.mkdtemp(prefix='cone_')
+        cls.path = pile.cone_state(cls.dir, n_grains=150, settle=0.004, cell_grains=800, log=lambda *a: None)
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.dir, ignore_errors=True)
+
+    def test_grains_stand_on_the_floor(self):
+        """Exactly the grains asked for, in the protocol's size range, none below the floor
+        plane, on a paving of fixed grains."""
+        snap = np.load(self.path)
+        grains = ~snap['fixed']
+        self.assertEqual(grains.sum(), 150)
+        self.assertGreater(snap['fixed'].sum(), 20)
+        d = 2 * snap['radius'][grains]
+        self.assertTrue(((d >= 0.0025 - 1e-9) & (d <= 0.005 + 1e-9)).all())
+        self.assertTrue((snap['pos'][:, 2] >= snap['radius'] * (1 - 1e-6)).all())
+        with open(os.path.join(self.dir, 'run.json')) as f:
+            self.assertEqual(json.load(f)['n_grains'], 150)
+
+    def test_bad_arguments(self):
+        with self.assertRaises(ValueError) as cm:
+            pile.cone_state(self.dir, n_grains=150, slope_deg=60)
+        self.assertIn('slope_deg', str(cm.exception))
+
+    def test_solver_bench_runs_on_it(self):
+        import csv
+        import subprocess
+        import yade.config
+        exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
+        out = os.path.join(self.dir, 'bench.csv')
+        res = subprocess.run([exe, '-j2', '-n', '-x', os.path.join(REPO, 'scripts', 'bench', 'solver_bench.py'), '--contacts', '',
+                              '--snapshot', self.path, '--pile-steps', '2', '--feed', '--pile-variants', 'slabs', '--out', out],
+                             capture_output=True, text=True, timeout=600)
+        self.assertTrue(os.path.exists(out), res.stdout[-2000:] + res.stderr[-2000:])
+        with open(out) as f:
+            rows = list(csv.DictReader(f))
+        methods = {r['method'] for r in rows if r['kind'] == 'stage'}
+        self.assertEqual(methods, {'CD', 'CD slabs'})
+        self.assertTrue(all(r['threads'] == '2' for r in rows))
+        self.assertEqual(len([r for r in rows if r['kind'] == 'determinism']), 1)
+
+
 class TestPileMethods(unittest.TestCase):
     """The same protocol with YADE's MD (the CD-versus-MD comparison of a pile), bad methods."""
 

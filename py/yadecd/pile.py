@@ -173,11 +173,11 @@ def scene_from_snapshot(path, **overrides):
     return p
 
 
-def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, log=print, **overrides):
+def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, cell_grains=2000, log=print, **overrides):
     """A large pile state for solver benchmarks, built in minutes instead of by deposition.
 
     Grains of the protocol's diameter law in a dense random packing (YADE's
-    ``pack.randomDensePack``, periodic compression of 2000 spheres, tiled) are cut to a cone of
+    ``pack.randomDensePack``, periodic compression of ``cell_grains`` spheres, tiled) are cut to a cone of
     slope ``slope_deg`` and base radius sized for about ``n_grains`` grains, set on the paving
     (base at z = d_max, just above it) and settled by the CD engine for ``settle`` seconds of
     simulated time. Writes ``run.json`` and ``snap_<t>.npz`` in ``run_dir`` (the format of
@@ -202,9 +202,9 @@ def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, log=print, *
     guess = expected_base_radius(n_grains, p['d_min'], p['d_max'], slope_deg, packing=0.62)
     r_mean, fuzz = (p['d_min'] + p['d_max']) / 4, (p['d_max'] - p['d_min']) / (p['d_max'] + p['d_min'])
     t0 = time.time()
-    side = 1.3 * guess  # a box with room for the cone, whatever the packing fraction turns out to be
+    side = 1.8 * guess  # a box with room for the cone: small cones lose many grains at their surface
     packing = pack.randomDensePack(pack.inAlignedBox((-side, -side, 0), (side, side, side * tan_s)), radius=r_mean,
-                                   rRelFuzz=fuzz, spheresInCell=2000, returnSpherePack=True, seed=p['seed'])
+                                   rRelFuzz=fuzz, spheresInCell=cell_grains, returnSpherePack=True, seed=p['seed'])
     centres = np.array([tuple(c) for c, r in packing])
     radii = np.array([r for c, r in packing])
 
@@ -212,7 +212,9 @@ def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, log=print, *
         rho = np.hypot(centres[:, 0], centres[:, 1])
         return (centres[:, 2] >= radii) & (rho <= (radius * tan_s - centres[:, 2] - radii / cos_s) / tan_s)
 
-    lo, hi = 0.2 * guess, side  # the base radius that holds n_grains grains, by bisection
+    if inside(side).sum() < n_grains:
+        raise RuntimeError('cone_state: the dense packing holds fewer than %d grains in the largest cone (radius %g m)' % (n_grains, side))
+    lo, hi = 0.2 * guess, side  # the smallest base radius that holds n_grains grains, by bisection
     for _ in range(40):
         radius = 0.5 * (lo + hi)
         lo, hi = (radius, hi) if inside(radius).sum() < n_grains else (lo, radius)

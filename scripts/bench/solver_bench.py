@@ -47,6 +47,9 @@ parser.add_argument('--snapshot', nargs='*', default=[], help='pile snapshots .n
 parser.add_argument('--pile-steps', type=int, default=20, help='steps timed on the pile state')
 parser.add_argument('--pile-variants', default='plain,general,relaxation,coloured,slabs',
                     help='solver variants timed on pile states besides the default: comma-separated subset of plain,general,relaxation,coloured,slabs')
+parser.add_argument('--feed', action='store_true',
+                    help='on pile states, keep creating grains by the pile protocol (rate, feed disc, creation rule) during the '
+                         'warm-up and timed steps, as at the end of a deposition; the same grains for every variant')
 parser.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'solver_bench.csv'))
 parser.add_argument('--quick', action='store_true', help='fewer sweeps (a smoke run)')
 parser.add_argument('--no-siconos', action='store_true')
@@ -126,7 +129,33 @@ def velocity_digest():
     return hashlib.sha1(np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies]).tobytes()).hexdigest()[:16]
 
 
-def breakdown(scene, steps, method='CD'):
+class Feed:
+    """Grain creation of the pile protocol (``yadecd.pile.Feeder``) between steps: one grain
+    every 1/(rate·dt) steps, from a fixed seed, so that every variant gets the same sequence."""
+
+    def __init__(self, p, enabled):
+        self.enabled, self.p = enabled, p
+        self.period = max(1, int(round(1 / (p['rate'] * p['dt']))))
+        self.feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
+
+    def __call__(self):
+        if self.enabled and O.iter % self.period == 0:
+            self.feeder.create()
+
+
+def step_loop(steps, feed):
+    """Run ``steps`` steps (feeding between them); returns the wall time inside O.step only."""
+    wall = 0.0
+    for _ in range(steps):
+        if feed:
+            feed()
+        t0 = time.perf_counter()
+        O.step()
+        wall += time.perf_counter() - t0
+    return wall
+
+
+def breakdown(scene, steps, method='CD', feed=None):
     """Mean wall time per step of each engine and integrator stage over ``steps`` steps."""
     cd = yadecd.integrator()
     cd.tolerance, cd.maxIter = tol, maxit
@@ -134,12 +163,12 @@ def breakdown(scene, steps, method='CD'):
         e.execTime = 0
     cd.timingDeltas.reset()
     sweeps = contacts = 0
-    t0 = time.perf_counter()
+    wall = 0.0
     for _ in range(steps):
-        O.step()
+        wall += step_loop(1, feed)
         sweeps += cd.iterations
         contacts += cd.nContacts
-    wall = (time.perf_counter() - t0) / steps
+    wall /= steps
     parts = {'step': wall}
     parts.update({e.__class__.__name__: e.execTime * 1e-9 / steps for e in O.engines})
     for label, ns in stage_times(cd).items():
@@ -186,13 +215,14 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
            quantity='sha1 of velocities after 5 steps', value=digest, unit='')
 
 for snapshot in args.snapshot:
-    pile.scene_from_snapshot(snapshot)
+    p = pile.scene_from_snapshot(snapshot)
     O.timingEnabled = True
     cd = yadecd.integrator()
     tol, maxit = cd.tolerance, cd.maxIter
-    O.run(20, True)  # rebuild contacts and warm start (snapshots hold no impulses)
+    label = 'pile ' + os.path.basename(os.path.dirname(os.path.abspath(snapshot))) + '/' + os.path.basename(snapshot) + (' fed' if args.feed else '')
+    step_loop(20, Feed(p, args.feed))  # rebuild contacts and warm start (snapshots hold no impulses)
     O.saveTmp('bench')
-    breakdown('pile ' + os.path.basename(snapshot), args.pile_steps)
+    breakdown(label, args.pile_steps, feed=Feed(p, args.feed))
     # the same steps again: plain Gauss–Seidel, general path, over-relaxation, coloured and slab sweeps
     for key in [v for v in args.pile_variants.split(',') if v]:
         method, attrs = PILE_VARIANTS[key]
@@ -200,10 +230,10 @@ for snapshot in args.snapshot:
         O.timingEnabled = True
         for k, v in attrs.items():
             setattr(yadecd.integrator(), k, v)
-        breakdown('pile ' + os.path.basename(snapshot), args.pile_steps, method=method)
+        breakdown(label, args.pile_steps, method=method, feed=Feed(p, args.feed))
         if key == 'slabs':  # determinism: the slab sweep's velocities after the timed steps (compare across -j)
             cd = yadecd.integrator()
-            record(kind='determinism', scene='pile ' + os.path.basename(snapshot), bodies=len(O.bodies), contacts=cd.nContacts,
+            record(kind='determinism', scene=label, bodies=len(O.bodies), contacts=cd.nContacts,
                    method=method, quantity='sha1 of velocities after %d steps' % args.pile_steps, value=velocity_digest(),
                    unit='interface %d contacts' % cd.nInterface)
 
