@@ -325,7 +325,10 @@ void ContactDynamicsIntegrator::predictPositions()
 // Stage 2: contact frames and gaps at q_m, from the same Ig2 functor that made the contact.
 void ContactDynamicsIntegrator::updateContactFrames()
 {
-	for (SolverContact& c : contacts) {
+	const long nc = long(contacts.size());
+#pragma omp parallel for schedule(static) if (nc >= 2048)
+	for (long k = 0; k < nc; ++k) { // contacts are independent here: any thread count gives the same frames
+		SolverContact& c = contacts[k];
 		const auto& b1 = Body::byId(c.b1, scene);
 		const auto& b2 = Body::byId(c.b2, scene);
 		ScGeom*        g  = static_cast<ScGeom*>(c.I->geom.get());
@@ -377,10 +380,13 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 // start-of-step local velocity U_i, and the law's scaling A and offset s (see the header).
 void ContactDynamicsIntegrator::assembleLocalProblems()
 {
-	const Real h = scene->dt;
-	qNorm        = 0;
-	hot.resize(contacts.size());
-	for (SolverContact& c : contacts) {
+	const Real h  = scene->dt;
+	const long nc = long(contacts.size());
+	hot.resize(nc);
+	qShare.resize(nc); // each contact's share of ‖q‖², summed below in a fixed order
+#pragma omp parallel for schedule(static) if (nc >= 2048)
+	for (long k = 0; k < nc; ++k) { // contacts are independent here: any thread count gives the same blocks
+		SolverContact&    c  = contacts[k];
 		const SolverBody& b1 = bodies[c.b1];
 		const SolverBody& b2 = bodies[c.b2];
 		const BodyRecord& r1 = records[c.b1];
@@ -388,9 +394,9 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 		const Matrix3r    S1 = skew(c.c1), S2 = skew(c.c2);
 		const Matrix3r    K  = Matrix3r(b1.invM.asDiagonal()) - S1 * b1.invI * S1 + Matrix3r(b2.invM.asDiagonal()) - S2 * b2.invI * S2;
 		c.W                  = c.frame * K * c.frame.transpose();
-		if (!(c.W(0, 0) > 0))
-			throw std::invalid_argument("contact " + pairName(c.b1, c.b2) + " joins two bodies that cannot move: make one of them dynamic or remove the contact.");
-		c.Ui  = c.frame * ((r2.vi + r2.wi.cross(c.c2)) - (r1.vi + r1.wi.cross(c.c1)));
+		qShare[k]            = 0;
+		if (!(c.W(0, 0) > 0)) continue; // reported below, outside the parallel loop
+		c.Ui       = c.frame * ((r2.vi + r2.wi.cross(c.c2)) - (r1.vi + r1.wi.cross(c.c1)));
 		auto* phys = static_cast<CDPhys*>(c.I->phys.get());
 		if (c.gapM > 0) { // open: the end-of-step gap g_m + h/2 U_N must stay ≥ 0
 			c.A = Vector3r::Ones();
@@ -402,12 +408,19 @@ void ContactDynamicsIntegrator::assembleLocalProblems()
 		}
 		c.Wlaw    = c.A.asDiagonal() * c.W;
 		c.WlawInv = c.Wlaw.inverse();
-		c.r    = c.frame * phys->impulse; // warm start, re-expressed in the new frame
-		buildSphereContact(&c - contacts.data());
+		c.r       = c.frame * phys->impulse; // warm start, re-expressed in the new frame
+		buildSphereContact(size_t(k));
 		// residual scale: free local velocities of the contacts that would close without an
 		// impulse (q_N < 0); far gap contacts, whose offsets 2 g_m/h are large, do not dilute it
 		const Vector3r q = c.A.cwiseProduct(localVelocity(c) + c.s);
-		if (q[0] < 0) qNorm += q.squaredNorm();
+		if (q[0] < 0) qShare[k] = q.squaredNorm();
+	}
+	qNorm = 0;
+	for (long k = 0; k < nc; ++k) {
+		const SolverContact& c = contacts[k];
+		if (!(c.W(0, 0) > 0))
+			throw std::invalid_argument("contact " + pairName(c.b1, c.b2) + " joins two bodies that cannot move: make one of them dynamic or remove the contact.");
+		qNorm += qShare[k];
 	}
 	qNorm = math::sqrt(qNorm);
 }
@@ -928,6 +941,33 @@ void ContactDynamicsIntegrator::applyPseudoImpulse(const SolverContact& c, Real 
 	records[c.b1].pw -= bodies[c.b1].invI * c.c1.cross(P);
 }
 
+// One correction sweep over rows [begin, end), forwards or backwards: returns the largest
+// overlap beyond its allowance met (relative) before each row's update.
+Real ContactDynamicsIntegrator::correctionRange(long begin, long end, bool forward)
+{
+	Real worst = 0;
+	for (long j = begin; j < end; ++j) {
+		const long     k   = forward ? j : end - 1 - (j - begin);
+		CorrectionRow& row = corrections[k];
+		// normal pseudo-velocity; for a sphere contact rotations never enter it (the lever arm
+		// is along n) and a normal pseudo-impulse never makes them
+		const Real un   = row.fast ? row.n.dot(pseudoV[row.b2] - pseudoV[row.b1]) : localPseudoVelocity(contacts[k])[0];
+		const Real v    = row.overlap - row.lag * un; // > 0: overlap beyond the allowance
+		worst           = math::max(worst, v);
+		const Real Pnew = math::max(Real(0), row.P + row.gain * v);
+		const Real dP   = Pnew - row.P;
+		if (dP != 0) {
+			if (row.fast) {
+				pseudoV[row.b2] += row.m2 * dP * row.n;
+				pseudoV[row.b1] -= row.m1 * dP * row.n;
+			} else
+				applyPseudoImpulse(contacts[k], dP);
+		}
+		row.P = Pnew;
+	}
+	return worst;
+}
+
 // Stage 5: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
 // normal pseudo-impulses P ≥ 0 that move positions but never velocities. Target: g_f ≥ −a,
 // with a the contact's overlap allowance (CDPhys.overlapAllowance: the overlap it was created
@@ -962,26 +1002,18 @@ void ContactDynamicsIntegrator::correctPositions()
 		if (f.fast) row.n = f.n, row.m1 = f.m1, row.m2 = f.m2;
 	}
 	pseudoV.assign(bodies.size(), Vector3r::Zero());
+	const bool slabbed = sweepOrder == 5 && blockStart.size() >= 2 && blockStart.back() == nc;
 	for (int it = 1; it <= maxProjectionIter; ++it) {
-		Real worst = 0;
-		for (long j = 0; j < nc; ++j) {
-			const long     k   = it % 2 == 1 ? j : nc - 1 - j; // alternating directions
-			CorrectionRow& row = corrections[k];
-			// normal pseudo-velocity; for a sphere contact rotations never enter it (the lever arm
-			// is along n) and a normal pseudo-impulse never makes them
-			const Real un   = row.fast ? row.n.dot(pseudoV[row.b2] - pseudoV[row.b1]) : localPseudoVelocity(contacts[k])[0];
-			const Real v    = row.overlap - row.lag * un; // > 0: overlap beyond the allowance
-			worst           = math::max(worst, v);
-			const Real Pnew = math::max(Real(0), row.P + row.gain * v);
-			const Real dP   = Pnew - row.P;
-			if (dP != 0) {
-				if (row.fast) {
-					pseudoV[row.b2] += row.m2 * dP * row.n;
-					pseudoV[row.b1] -= row.m1 * dP * row.n;
-				} else
-					applyPseudoImpulse(contacts[k], dP);
-			}
-			row.P = Pnew;
+		const bool forward = it % 2 == 1; // alternating directions
+		Real       worst   = 0;
+		if (!slabbed) worst = correctionRange(0, nc, forward);
+		else { // as the slab sweep: slabs in parallel, the interface after them (before them backwards)
+			const int ns = int(blockStart.size()) - 2;
+			if (!forward) worst = correctionRange(blockStart[ns], blockStart[ns + 1], false);
+#pragma omp parallel for schedule(static, 1) reduction(max : worst) if (ns > 1 && blockStart[ns] >= 256)
+			for (int s = 0; s < ns; ++s)
+				worst = math::max(worst, correctionRange(blockStart[s], blockStart[s + 1], forward));
+			if (forward) worst = math::max(worst, correctionRange(blockStart[ns], blockStart[ns + 1], true));
 		}
 		projectionIterations = it;
 		if (worst <= positionTolerance) break;

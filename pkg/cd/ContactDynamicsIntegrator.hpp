@@ -143,6 +143,7 @@ private:
 	std::vector<Vector3r>      pseudoV;      // translational pseudo-velocities during the correction
 	std::vector<Vector3r>      rPrev;        // momentum: impulses after the previous sweep (per contact)
 	std::vector<Vector3r>      vPrev, wPrev; // momentum: body velocities after the previous sweep
+	std::vector<Real>          qShare;    // per contact, its share of ‖q‖² (assembly)
 	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
 
 	void checkScene();
@@ -179,6 +180,7 @@ private:
 	Real     slabSweep(Real omega);
 	void     extrapolateRange(long begin, long end, Real beta);
 	void     applyPseudoImpulse(const SolverContact& c, Real dP);
+	Real     correctionRange(long begin, long end, bool forward);
 	Real     computeResidual();
 	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
 
