@@ -173,13 +173,13 @@ class TestConeState(unittest.TestCase):
         exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
         out = os.path.join(self.dir, 'bench.csv')
         res = subprocess.run([exe, '-j2', '-n', '-x', os.path.join(REPO, 'scripts', 'bench', 'solver_bench.py'), '--contacts', '',
-                              '--snapshot', self.path, '--pile-steps', '2', '--feed', '--pile-variants', 'slabs', '--out', out],
+                              '--snapshot', self.path, '--pile-steps', '2', '--feed', '--pile-variants', 'height', '--out', out],
                              capture_output=True, text=True, timeout=600)
         self.assertTrue(os.path.exists(out), res.stdout[-2000:] + res.stderr[-2000:])
         with open(out) as f:
             rows = list(csv.DictReader(f))
         methods = {r['method'] for r in rows if r['kind'] == 'stage'}
-        self.assertEqual(methods, {'CD', 'CD slabs'})
+        self.assertEqual(methods, {'CD', 'CD height order'})
         self.assertTrue(all(r['threads'] == '2' for r in rows))
         self.assertEqual(len([r for r in rows if r['kind'] == 'determinism']), 1)
 

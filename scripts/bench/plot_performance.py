@@ -8,7 +8,8 @@
 - perf_pile_cost.png: a pile step's cost against its number of contacts, per solver variant:
   the model overhead × ns × contacts × sweeps(contacts), with ns and the overhead (step over
   solve) from the pile benchmark and sweeps fitted to that variant's run (progress.csv),
-  extrapolated to the paper's 33 000 contacts and to the full run.
+  extrapolated to the paper's 33 000 contacts and to the full run; with the steps measured on
+  large fed pile states (cone_pile.py + solver_bench.py --snapshot --feed) drawn over it.
 """
 import argparse
 import csv
@@ -29,6 +30,9 @@ ap.add_argument('--run', nargs='*', metavar='LABEL,PROGRESS_CSV,NS,STEP_OVER_SOL
                          'momentum (default),%s,41.6,1.47' % os.path.join(REPO, 'docs', 'data', 'pile2000m_progress.csv')],
                 help='a pile run per solver variant: label, its progress.csv, ns per contact-sweep of its solve and '
                      'step time over solve time (both from solver_bench.py --snapshot)')
+ap.add_argument('--states', nargs='*', default=[os.path.join(REPO, 'docs', 'data', 'solver_bench_cones.csv'),
+                                               os.path.join(REPO, 'docs', 'data', 'solver_bench_cones_2threads.csv')],
+                help='solver_bench.py --snapshot CSVs of large pile states (cone_pile.py): measured steps drawn over the model')
 ap.add_argument('--dt', type=float, default=2e-4, help='time step of the pile runs [s]')
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'figures'))
 a = ap.parse_args()
@@ -103,7 +107,7 @@ for spec in a.run:
     runs.append((label, float(ns), fit_run(path, float(ns), float(sos))))
 if runs:
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
-    x = np.linspace(500, 33000, 200)
+    x = np.linspace(500, 42000, 200)
     for (label, ns, f), colour in zip(runs, ('r', 'b', 'g', 'm')):
         a1.plot(f['cm'], f['per_step'] * 1e3, '.', ms=2, color=colour, alpha=0.3)
         a1.plot(x, f['step'](x) * 1e3, '-', color=colour, label='%s: model (dots: the run, shared machine)' % label)
@@ -115,6 +119,20 @@ if runs:
         hours = 25 * f['step'](f['k'] * n).sum() / 3600
         print('%s: sweeps ~ contacts^%.2f; model step at 33 000 contacts: %.2f s; contacts per grain %.2f; '
               'extrapolated full 14 000-grain deposition (350 000 steps): %.0f h' % (label, f['beta'], f['step'](33000), f['k'], hours))
+    marks = {('CD', '1'): ('bs', 'measured, default (momentum, slabs), 1 thread'), ('CD plain GS', '1'): ('r^', 'measured, plain GS, 1 thread'),
+             ('CD', '2'): ('gD', 'measured, default, 2 threads')}
+    for path in a.states:
+        if not os.path.exists(path):
+            print('skipped (missing):', path)
+            continue
+        with open(path) as f:
+            rows = [r for r in csv.DictReader(f) if r['kind'] == 'stage' and r['quantity'] == 'step']
+        for (method, threads), (style, label) in marks.items():
+            sel = [r for r in rows if r['method'] == method and r['threads'] == threads]
+            if sel:
+                cc = [float(r['contacts']) for r in sel]
+                a1.plot(cc, [float(r['value']) for r in sel], style, ms=6, mfc='none', label=label + ' (fed cone states)')
+                a2.loglog(cc, [float(r['sweeps']) for r in sel], style, ms=6, mfc='none', label=label)
     a1.axvline(33000, color='k', ls=':', lw=0.8)
     a1.axhline(50, color='g', ls=':', lw=0.8)
     a1.set_yscale('log')
