@@ -221,7 +221,10 @@ def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, cell_grains=
         radius = 0.5 * (lo + hi)
         lo, hi = (radius, hi) if inside(radius).sum() < n_grains else (lo, radius)
     radius = hi
-    grains = [(centres[k], radii[k]) for k in np.flatnonzero(inside(radius))]
+    # bottom-up, as a deposition creates them: body ids then follow height as in a deposited
+    # pile, and a sweep in height order visits bodies close in memory
+    kept = np.flatnonzero(inside(radius))
+    grains = [(centres[k], radii[k]) for k in kept[np.argsort(centres[kept, 2], kind='stable')]]
     log('cone_state: %d grains in a cone of radius %.2f cm, height %.2f cm (dense packing of %d grains: %.0f s)'
         % (len(grains), 100 * radius, 100 * radius * tan_s, len(radii), time.time() - t0))
     z0 = p['d_max']  # the paving's grains reach z = 2 r ≤ d_max
