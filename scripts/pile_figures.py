@@ -63,12 +63,22 @@ def main(argv=None):
     fmt = lambda v, f='%.4g': 'n/a' if v is None else f % v
     print('snapshot %s (t = %s s): %d grains, %d contacts' % (s['snapshot'], fmt(s['time_s']),
                                                               s['n_grains'], s['n_contacts']))
-    print('slope %s ± %s deg (paper 26), H %s cm, base radius %s cm'
-          % (fmt(s['slope_deg'], '%.2f'), fmt(s['slope_err_deg'], '%.2f'), fmt(s['H_cm']), fmt(s['base_radius_cm'])))
+    if s['slope_deg'] is None:
+        print('slope: %s (chord angle %s deg); H %s cm, base radius %s cm'
+              % (s['slope_note'], fmt(s['chord_angle_deg'], '%.1f'), fmt(s['H_cm']), fmt(s['base_radius_cm'])))
+    else:
+        print('flank slope %s ± %s deg (paper 26), chord angle %s deg, H %s cm, base radius %s cm'
+              % (fmt(s['slope_deg'], '%.1f'), fmt(s['slope_err_deg'], '%.1f'), fmt(s['chord_angle_deg'], '%.1f'),
+                 fmt(s['H_cm']), fmt(s['base_radius_cm'])))
+    dip = s['dip']
+    print('central dip D = %s, 95%% interval [%s, %s] (%s contacts in the disc)%s'
+          % (fmt(dip['D'], '%.2f'), fmt(dip['ci95'][0], '%.2f'), fmt(dip['ci95'][1], '%.2f'), dip['n_disc'],
+             ('; ' + dip['note']) if dip['note'] else ''))
     print('floor pressure: centre %s dPa, peak %s dPa at r = %s cm, hydrostatic %s dPa'
           % (fmt(s['p_center_dPa']), fmt(s['p_peak_dPa']), fmt(s['p_peak_radius_cm']), fmt(s['hydrostatic_dPa'])))
-    print('reciprocity: %d pairs, relative difference %s ± %s'
-          % (s['reciprocity']['n_pairs'], fmt(s['reciprocity']['rel_mean'], '%.3f'), fmt(s['reciprocity']['rel_std'], '%.3f')))
+    rc = s['reciprocity']
+    print('reciprocity: %d pairs, relative difference median %s (null pairing %s)'
+          % (rc['n_pairs'], fmt(rc['rel_median'], '%.3f'), fmt(rc['rel_null_median'], '%.3f')))
     print('written: %s' % os.path.join(out, 'summary.json'))
     return 0
 

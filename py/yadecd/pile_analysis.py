@@ -46,10 +46,13 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ['load_snapshot', 'list_snapshots', 'run_parameters', 'grain_masses', 'pile_mask',
-           'floor_level', 'mean_diameter', 'slice_mask', 'profile_and_slope', 'band_segment',
+           'floor_level', 'mean_diameter', 'slice_mask', 'profile_and_slope', 'flank_slope',
+           'surface_grains', 'robust_line', 'horizontal_pairs', 'band_segment',
            'band_force_density', 'BandDensity', 'reciprocal_cuts', 'reciprocal_pairs',
            'cylindrical_cut_directions', 'ground_pressure', 'contact_orientation_histogram',
-           'speed_levels', 'fossil_layer']
+           'speed_levels', 'fossil_layer', 'central_dip', 'mean_interval',
+           'jackknife_ratio_dip', 't_quantile_975', 't_cdf', 'layer_directions',
+           'line_angle_between', 'fossil_law']
 
 REQUIRED_KEYS = ('time', 'g', 'rho', 'pos', 'radius', 'vel', 'fixed', 'birth', 'ids',
                  'c_id1', 'c_id2', 'c_point', 'c_normal', 'c_force')
@@ -314,29 +317,6 @@ def _column_median(a):
     return out
 
 
-def _slope_deg(b, se_b):
-    """Slope angle [deg] of a descending line of gradient b, and its standard error [deg]."""
-    return math.degrees(math.atan(-b)), math.degrees(se_b / (1.0 + b * b))
-
-
-def _max_finite(*values):
-    """Largest finite value among ``values`` (nan if none is finite)."""
-    finite = [v for v in values if math.isfinite(v)]
-    return max(finite) if finite else float('nan')
-
-
-def _sector_slopes(r_sb, h_sb, in_window):
-    """Slope [deg] fitted separately in each azimuthal sector (sectors with < 3 points in the
-    window are skipped)."""
-    slopes = []
-    for s in range(r_sb.shape[0]):
-        use = in_window[s]
-        if use.sum() >= 3:
-            _, b, se = _linear_fit(r_sb[s, use], h_sb[s, use])
-            slopes.append(_slope_deg(b, se)[0])
-    return np.array(slopes)
-
-
 def _cone_volume(r_prof, h_prof, base_radius):
     """Volume [m³] under the axisymmetric profile h(r) ≥ 0 from r = 0 to ``base_radius``
     (trapezoid rule on 2·pi·r·h; the profile is extended flat to r = 0 and closed at
@@ -348,30 +328,260 @@ def _cone_volume(r_prof, h_prof, base_radius):
     return float(((f[1:] + f[:-1]) * np.diff(r)).sum() / 2)
 
 
-def profile_and_slope(snap, bin_width=None, n_sectors=8, fit_window=(0.15, 0.8), z_floor=None,
-                      mask=None):
-    """Free surface of the pile, its slope and its size.
+def horizontal_pairs(xy, cutoff):
+    """All ordered pairs (i, j), i != j, of points ``xy`` (n, 2) [m] closer than ``cutoff`` [m]
+    horizontally, found through a square grid of cell ``cutoff`` (no O(n²) step). Returns two
+    int arrays."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    n = len(xy)
+    if n < 2 or not cutoff > 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    ij = np.floor(xy / cutoff).astype(np.int64)
+    ij -= ij.min(axis=0) - 1
+    width = int(ij[:, 1].max()) + 2
+    key = ij[:, 0] * width + ij[:, 1]
+    order = np.argsort(key, kind='stable')
+    skey = key[order]
+    out_i, out_j = [], []
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            k2 = (ij[:, 0] + dx) * width + ij[:, 1] + dy
+            lo = np.searchsorted(skey, k2, 'left')
+            cnt = np.searchsorted(skey, k2, 'right') - lo
+            total = int(cnt.sum())
+            if total == 0:
+                continue
+            first = np.repeat(np.cumsum(cnt) - cnt, cnt)
+            out_i.append(np.repeat(np.arange(n), cnt))
+            out_j.append(order[np.repeat(lo, cnt) + np.arange(total) - first])
+    i, j = np.concatenate(out_i), np.concatenate(out_j)
+    d2 = ((xy[i] - xy[j]) ** 2).sum(axis=1)
+    keep = (i != j) & (d2 < cutoff * cutoff)
+    return i[keep], j[keep]
 
-    The grains are those of :func:`pile_mask` (or ``mask``). The plane is cut in ``n_sectors``
-    azimuthal sectors and radial bins of width ``bin_width`` [m] (default: one mean diameter);
-    in every (sector, bin) cell the highest grain gives a surface point (r of its centre, z of
-    its top = z + radius). The profile h(r) is, per bin, the median over sectors of these points.
-    The apex height H is the highest grain top above the floor. The flank is fitted by least
-    squares on every sector point whose height above the floor lies within
-    ``fit_window`` = (lo, hi) fractions of H (so the rounded apex and the foot are left out).
+
+def surface_grains(snap, mask=None):
+    """Grains of the free surface: those (among ``mask``, default :func:`pile_mask`) whose top
+    point (x, y, z + radius) sees the sky, i.e. the vertical ray going up from it meets no other
+    grain of the snapshot. A sphere j hides grain i when the horizontal distance ρ between their
+    centres is below r_j and its upper surface there, z_j + sqrt(r_j² - ρ²), is above i's top.
+    Unlike the highest grain of a cell, the exposed grains have the same statistics everywhere
+    on a uniform surface (their number does not grow with a cell's area), so fitting them is
+    free of the cell-size bias near the axis. Returns a bool array (N,)."""
+    snap = _normalise(snap)
+    if mask is None:
+        mask = pile_mask(snap)
+    pos, rad = snap['pos'], snap['radius']
+    visible = np.asarray(mask, dtype=bool).copy()
+    if len(pos) < 2:
+        return visible
+    i, j = horizontal_pairs(pos[:, :2], float(rad.max()))
+    rho2 = ((pos[i, :2] - pos[j, :2]) ** 2).sum(axis=1)
+    over = rho2 < rad[j] ** 2
+    i, j, rho2 = i[over], j[over], rho2[over]
+    hidden = pos[j, 2] + np.sqrt(rad[j] ** 2 - rho2) > pos[i, 2] + rad[i]
+    visible[i[hidden]] = False
+    return visible
+
+
+def _weighted_line(x, y, w):
+    """Weighted least-squares line y = a + b·x; (nan, nan) when degenerate."""
+    sw = w.sum()
+    if sw <= 0:
+        return float('nan'), float('nan')
+    xm, ym = (w * x).sum() / sw, (w * y).sum() / sw
+    sxx = (w * (x - xm) ** 2).sum()
+    if sxx <= 0:
+        return float('nan'), float('nan')
+    b = (w * (x - xm) * (y - ym)).sum() / sxx
+    return float(ym - b * xm), float(b)
+
+
+def _theil_sen(x, y):
+    """Theil–Sen line: b = median of the pairwise slopes (distinct x), a = median(y - b·x)."""
+    i, j = np.triu_indices(len(x), 1)
+    dx = x[j] - x[i]
+    ok = dx != 0
+    if not ok.any():
+        return float('nan'), float('nan')
+    b = float(np.median((y[j] - y[i])[ok] / dx[ok]))
+    return float(np.median(y - b * x)), b
+
+
+def robust_line(x, y, bin_width, c=4.685, max_iter=50, start=None):
+    """Line y = a + b·x resistant to outliers (stray grains, a foot, a cap left in the window).
+
+    Start: the Theil–Sen line through the medians of y in bins of x of width ``bin_width`` (or
+    ``start`` = (a, b)), refined by 10 Huber iterations (weights min(1, 1.345 s/|residual|),
+    never zero). Then Tukey's bisquare, iteratively reweighted: weights
+    (1 - u²)² for |u| < 1, u = residual/(c·s), s = 1.4826·MAD of the residuals; points farther
+    than c·s get no weight. Returns (a, b, weights); (nan, nan, zeros) with fewer than two
+    distinct bins."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    w = np.zeros(len(x))
+    if start is None:
+        k = np.floor(x / bin_width).astype(np.int64)
+        cells = np.unique(k)
+        if len(cells) < 2:
+            return float('nan'), float('nan'), w
+        xb = np.array([np.median(x[k == c_]) for c_ in cells])
+        yb = np.array([np.median(y[k == c_]) for c_ in cells])
+        a, b = _theil_sen(xb, yb)
+    else:
+        a, b = start
+    if not np.isfinite(b):
+        return float('nan'), float('nan'), w
+    w = np.ones(len(x))
+    s_floor = 1e-9 * max(float(np.ptp(y)), 1e-300)   # exact data: the scale never reaches 0
+    for it in range(max_iter + 10):
+        e = y - a - b * x
+        s = max(1.4826 * float(np.median(np.abs(e - np.median(e)))), s_floor)
+        if it < 10:      # Huber first: never a zero weight, so a rough start cannot lose every point
+            w = np.minimum(1.0, 1.345 * s / np.maximum(np.abs(e), 1e-300))
+            a, b = _weighted_line(x, y, w)
+            continue
+        u = e / (c * s)
+        w = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
+        a2, b2 = _weighted_line(x, y, w)
+        if not np.isfinite(b2):
+            break
+        done = abs(b2 - b) <= 1e-12 * max(1.0, abs(b)) and abs(a2 - a) <= 1e-12 * max(1.0, abs(a))
+        a, b = a2, b2
+        if done:
+            break
+    return float(a), float(b), w
+
+
+# rules of the flank window, in mean grain diameters d (see flank_slope)
+FLANK_MIN_THICKNESS_D = 2.0     # the pile is at least two grains thick: leaves out the foot
+FLANK_CAP_RADIUS_D = 3.0        # no point nearer the axis than this: leaves out the cap and the
+FLANK_CAP_DROP_D = 1.0          # axis cells; and none within this of the apex height
+FLANK_MIN_SPAN_D = 2.0          # the window must span at least this much height
+FLANK_MIN_POINTS = 12
+
+
+def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
+    """Slope of the straight flank of the free surface, robust to the cap, the foot, sparse cells
+    near the axis and stray grains.
+
+    What it measures: the exposed grains (:func:`surface_grains`) give surface points
+    (r of the centre, height of the top above the floor). The flank window keeps those where
+    the pile is at least ``FLANK_MIN_THICKNESS_D`` = 2 mean diameters d thick (no foot of single
+    grains), at least 3 d from the axis and at least 1 d below the apex (no cap): rules in
+    grain diameters, not fractions of H, so they mean the same on piles of every size. A
+    bisquare line (:func:`robust_line`) is fitted to those points; the slope is atan(-b).
+    Its uncertainty is the bootstrap standard error over ``n_sectors`` azimuthal sectors
+    (sectors resampled with replacement, ``n_boot`` times, fixed ``seed``): it measures how much
+    the answer depends on which part of the pile one looks at.
+
+    Beside it, the overall angle atan((H - 2d)/R2): the chord from the apex to the toe, where R2
+    is the radius at which the pile is two grains thick (median over sectors of the outermost
+    exposed grain at least 2 d high). On a perfect cone both read the cone's angle; a rounded
+    cap lowers the chord angle only.
+
+    A pile whose window would span less than ``FLANK_MIN_SPAN_D`` = 2 d of height (H < 5 d,
+    about 2 cm with the paper's grains), or holds too few points, has no straight flank: the
+    slope is nan and ``slope_note`` says why.
+
+    :returns: dict ``slope_deg``, ``slope_err_deg``, ``slope_sector_deg`` (per-sector fits),
+        ``slope_note`` ('' when measured), ``fit_line`` (a, b) of h = a + b·r, ``fit_r_range``
+        [m], ``n_fit_points``, ``n_surface``, ``surface_r``, ``surface_h`` [m] (all exposed
+        grains), ``in_window``, ``weight`` (per exposed grain), ``H`` [m], ``d`` [m],
+        ``R2`` [m], ``chord_angle_deg``, ``base_radius`` [m] (where the fitted line meets the
+        floor), ``H_cone`` [m] (the line at r = 0).
+    """
+    snap = _normalise(snap)
+    if mask is None:
+        mask = pile_mask(snap)
+    if not mask.any():
+        raise ValueError('flank_slope: no pile grain')
+    z_floor = floor_level(snap) if z_floor is None else float(z_floor)
+    d = mean_diameter(snap)
+    pos, rad = snap['pos'], snap['radius']
+    H = float((pos[mask, 2] + rad[mask]).max() - z_floor)
+    vis = surface_grains(snap, mask)
+    r = np.hypot(pos[vis, 0], pos[vis, 1])
+    h = pos[vis, 2] + rad[vis] - z_floor
+    phi = np.mod(np.arctan2(pos[vis, 1], pos[vis, 0]), 2 * math.pi)
+    sector = np.minimum((phi / (2 * math.pi / n_sectors)).astype(int), n_sectors - 1)
+    h_lo, h_hi = FLANK_MIN_THICKNESS_D * d, H - FLANK_CAP_DROP_D * d
+    window = (h >= h_lo) & (h <= h_hi) & (r >= FLANK_CAP_RADIUS_D * d)
+    nan = float('nan')
+    out = {'slope_deg': nan, 'slope_err_deg': nan, 'slope_sector_deg': np.zeros(0), 'slope_note': '',
+           'fit_line': (nan, nan), 'fit_r_range': (nan, nan), 'n_fit_points': int(window.sum()),
+           'n_surface': int(vis.sum()), 'surface_r': r, 'surface_h': h, 'in_window': window,
+           'weight': np.zeros(len(r)), 'H': H, 'd': d, 'base_radius': nan, 'H_cone': nan}
+    out.update(_chord(r, h, sector, n_sectors, H, d))
+    if h_hi - h_lo < FLANK_MIN_SPAN_D * d:
+        out['slope_note'] = ('no straight flank: the pile is %.1f grain diameters high, a flank needs %.1f'
+                             % (H / d, FLANK_MIN_THICKNESS_D + FLANK_CAP_DROP_D + FLANK_MIN_SPAN_D))
+        return out
+    if window.sum() < FLANK_MIN_POINTS:
+        out['slope_note'] = 'no straight flank: %d surface points in the flank window' % window.sum()
+        return out
+    x, y, sec = r[window], h[window], sector[window]
+    a, b, w = robust_line(x, y, d)
+    if not (np.isfinite(b) and b < 0):
+        out['slope_note'] = 'no descending flank in the window'
+        return out
+    weight = np.zeros(len(r))
+    weight[window] = w
+    used = w > 0
+    per_sector = []
+    for s in range(n_sectors):
+        m = sec == s
+        if m.sum() >= 6 and len(np.unique(np.floor(x[m] / d))) >= 3:
+            _, bs, _ = robust_line(x[m], y[m], d, start=(a, b))
+            if np.isfinite(bs):
+                per_sector.append(math.degrees(math.atan(-bs)))
+    rng = np.random.default_rng(seed)
+    boots = []
+    members = [np.flatnonzero(sec == s) for s in range(n_sectors)]
+    for _ in range(n_boot):
+        pick = np.concatenate([members[s] for s in rng.integers(0, n_sectors, n_sectors)])
+        if len(pick) < FLANK_MIN_POINTS:
+            continue
+        _, bb, _ = robust_line(x[pick], y[pick], d, start=(a, b))
+        if np.isfinite(bb):
+            boots.append(math.degrees(math.atan(-bb)))
+    out.update(slope_deg=math.degrees(math.atan(-b)), fit_line=(a, b),
+               slope_err_deg=float(np.std(boots, ddof=1)) if len(boots) > 1 else nan,
+               slope_sector_deg=np.array(per_sector), weight=weight,
+               fit_r_range=(float(x[used].min()), float(x[used].max())),
+               base_radius=a / -b, H_cone=a)
+    return out
+
+
+def _chord(r, h, sector, n_sectors, H, d):
+    """R2 (median over sectors of the outermost exposed grain at least 2 d high) and the chord
+    angle atan((H - 2 d)/R2) [deg]."""
+    thick = h >= FLANK_MIN_THICKNESS_D * d
+    edges = [float(r[thick & (sector == s)].max()) for s in range(n_sectors) if (thick & (sector == s)).any()]
+    R2 = float(np.median(edges)) if edges else float('nan')
+    ok = R2 > 0 and H > FLANK_MIN_THICKNESS_D * d
+    return {'R2': R2, 'chord_angle_deg': math.degrees(math.atan((H - FLANK_MIN_THICKNESS_D * d) / R2))
+            if ok else float('nan')}
+
+
+def profile_and_slope(snap, bin_width=None, n_sectors=8, z_floor=None, mask=None, n_boot=200):
+    """Free surface of the pile: its profile, the flank slope, the apex height and the bulk
+    density.
+
+    The slope and its uncertainty are :func:`flank_slope`'s (exposed grains, a window in grain
+    diameters, a bisquare fit, a bootstrap over sectors). For the figure and the volume, the
+    plane is also cut in ``n_sectors`` azimuthal sectors and radial bins of width ``bin_width``
+    [m] (default one mean diameter); in every (sector, bin) cell the highest grain top gives a
+    point, and the profile h(r) is their median over sectors. ``slope_ls_window_deg`` keeps the
+    estimator used before (least squares on those cell points between 15 % and 80 % of H): it
+    reads several degrees low on cones of known slope (cell-size bias near the axis, foot layer,
+    strays; docs/pile.md) and is reported only to compare with earlier numbers.
 
     :param z_floor: floor height [m]; default :func:`floor_level`.
-    :returns: dict with, lengths in m and angles in degrees:
-        ``r``, ``h`` profile (bin-wise, h above the floor, nan where empty), ``bin_width``,
-        ``r_sector``, ``h_sector`` (n_sectors, n_bins) sector points (h above the floor),
-        ``z_floor``, ``H`` apex height above floor, ``H_cone`` height at r = 0 of the fitted line,
-        ``base_radius`` where the fitted line meets the floor,
-        ``slope_deg`` pooled fit, ``slope_fit_err_deg`` its standard error,
-        ``slope_sector_deg`` per-sector slopes, ``slope_sector_std_deg`` their spread,
-        ``slope_sector_err_deg`` = spread/sqrt(number of sectors),
-        ``slope_err_deg`` = max(fit error, sector error), ``n_fit_points``,
-        ``fit_line`` = (a, b) of z - z_floor = a + b·r, ``volume`` [m³] under the profile,
-        ``pile_mass`` [kg] of the pile grains inside the base radius, ``rho_bulk`` [kg/m³] =
+    :returns: :func:`flank_slope`'s dict plus, lengths in m: ``r``, ``h`` median profile (h above
+        the floor, nan where empty), ``bin_width``, ``r_sector``, ``h_sector`` (n_sectors,
+        n_bins), ``z_floor``, ``slope_ls_window_deg``, ``profile_radius`` (outermost bin where
+        the median profile is at least one mean diameter high), ``volume`` [m³] under the profile
+        up to it, ``pile_mass`` [kg] of the pile grains inside it, ``rho_bulk`` [kg/m³] =
         pile_mass/volume (an estimate: the profile follows grain tops), ``n_grains``.
     """
     snap = _normalise(snap)
@@ -380,6 +590,7 @@ def profile_and_slope(snap, bin_width=None, n_sectors=8, fit_window=(0.15, 0.8),
     if not mask.any():
         raise ValueError('profile_and_slope: no pile grain')
     z_floor = floor_level(snap) if z_floor is None else float(z_floor)
+    result = flank_slope(snap, mask=mask, z_floor=z_floor, n_sectors=n_sectors, n_boot=n_boot)
     w = float(bin_width) if bin_width is not None else mean_diameter(snap)
     pos, rad = snap['pos'][mask], snap['radius'][mask]
     r = np.hypot(pos[:, 0], pos[:, 1])
@@ -387,24 +598,20 @@ def profile_and_slope(snap, bin_width=None, n_sectors=8, fit_window=(0.15, 0.8),
     top = pos[:, 2] + rad - z_floor
     n_bins = int(r.max() // w) + 1
     r_sb, h_sb = _sector_profiles(r, phi, top, w, n_bins, n_sectors)
-    H = float(top.max())
-    lo, hi = fit_window
+    H = result['H']
     with np.errstate(invalid='ignore'):
-        in_window = (h_sb >= lo * H) & (h_sb <= hi * H)
-    a, b, se_b = _linear_fit(r_sb[in_window], h_sb[in_window])
-    slope, slope_err = _slope_deg(b, se_b) if not math.isnan(b) else (float('nan'),) * 2
-    sectors = _sector_slopes(r_sb, h_sb, in_window)
-    sec_std = float(sectors.std(ddof=1)) if len(sectors) > 1 else float('nan')
-    sec_err = sec_std / math.sqrt(len(sectors)) if len(sectors) > 1 else float('nan')
-    base = a / -b if b < 0 else float('nan')
+        legacy = (h_sb >= 0.15 * H) & (h_sb <= 0.8 * H)
+    _, b_ls, _ = _linear_fit(r_sb[legacy], h_sb[legacy])
     r_prof, h_prof = _column_median(r_sb), _column_median(h_sb)
-    result = {'r': r_prof, 'h': h_prof, 'bin_width': w, 'r_sector': r_sb, 'h_sector': h_sb,
-              'z_floor': z_floor, 'H': H, 'H_cone': a, 'base_radius': base,
-              'slope_deg': slope, 'slope_fit_err_deg': slope_err, 'slope_sector_deg': sectors,
-              'slope_sector_std_deg': sec_std, 'slope_sector_err_deg': sec_err,
-              'slope_err_deg': _max_finite(slope_err, sec_err),
-              'n_fit_points': int(in_window.sum()), 'fit_line': (a, b), 'n_grains': int(mask.sum())}
-    result.update(_bulk_density(snap, mask, r_prof, h_prof, base))
+    d = result['d']
+    with np.errstate(invalid='ignore'):
+        high = np.flatnonzero(h_prof >= d)
+    edge = float(r_prof[high[-1]] + 0.5 * w) if len(high) else float('nan')
+    result.update({'r': r_prof, 'h': h_prof, 'bin_width': w, 'r_sector': r_sb, 'h_sector': h_sb,
+                   'z_floor': z_floor, 'profile_radius': edge,
+                   'slope_ls_window_deg': math.degrees(math.atan(-b_ls)) if np.isfinite(b_ls) else float('nan'),
+                   'n_grains': int(mask.sum())})
+    result.update(_bulk_density(snap, mask, r_prof, h_prof, edge))
     return result
 
 
@@ -541,7 +748,31 @@ def reciprocal_cuts(snap, pairs):
     out = {k: np.array(v, dtype=float) for k, v in out.items()}
     out['centre'] = out['centre'].reshape(-1, 2)
     out.update(_reciprocity_stats(out['nT2'], out['n2T'], out['rel']))
+    out['rel_null'] = _reciprocity_null(cont, pairs)
+    ok = np.isfinite(out['rel_null'])
+    out['rel_null_mean'] = float(out['rel_null'][ok].mean()) if ok.any() else float('nan')
+    out['rel_null_median'] = float(np.median(out['rel_null'][ok])) if ok.any() else float('nan')
     return out
+
+
+def _reciprocity_null(cont, pairs):
+    """The reciprocity statistic with no reason to hold: each pair's second band is replaced by
+    the second band of the pair six places further on (the next centre of the grid when each
+    centre has six pairs), so T and T' come from different places. Its spread is the scale
+    against which the true pairs' agreement is read."""
+    k = len(pairs)
+    if k < 7:
+        return np.full(k, np.nan)
+    rel = np.full(k, np.nan)
+    bands1 = [_band_from_contacts(cont, *seg) for seg, _ in pairs]
+    bands2 = [_band_from_contacts(cont, *seg2) for _, seg2 in pairs]
+    for i in range(k):
+        b1, b2 = bands1[i], bands2[(i + 6) % k]
+        a, b = float(b1.n @ b2.T), float(b2.n @ b1.T)
+        scale = math.sqrt(np.linalg.norm(b1.T) * np.linalg.norm(b2.T))
+        if scale > 0:
+            rel[i] = abs(a - b) / scale
+    return rel
 
 
 def _reciprocity_stats(a, b, rel):
@@ -602,6 +833,102 @@ def cylindrical_cut_directions(snap, radii, heights, band_height):
     return {'r': rr, 'z': zz, 'Tr': Tr, 'Tz': Tz, 'magnitude': np.hypot(Tr, Tz), 'count': count,
             'angle_from_vertical_deg': from_vertical, 'inclination_deg': incl,
             'band_height': float(band_height)}
+
+
+def layer_directions(snap, points_rz, radius, mask=None, min_grains=12):
+    """Local direction of the fossil layers at meridian points.
+
+    The layers are the level sets of the birth time. At each point (r, z) [m] of ``points_rz``,
+    a linear birth time t = c + g_r·(r' - r) + g_z·(z' - z) is fitted by least squares to the
+    pile grains (``mask``, default :func:`pile_mask`, born at t >= 0) whose meridian coordinates
+    (r', z') lie within ``radius`` [m] of it, all azimuths pooled. The layer through the point runs
+    perpendicular to the gradient (g_r, g_z).
+
+    :returns: dict of arrays (one per point): ``inclination_deg`` of the layer as a line in
+        [-90, 90] (positive when it rises outward, a layer parallel to a 26° flank gives -26),
+        ``r2`` the fit's coefficient of determination (how much of the birth-time spread the
+        layering explains), ``n`` grains used, ``gradient_s_m`` |g| [s/m]; nan where fewer than
+        ``min_grains`` grains are near.
+    """
+    snap = _normalise(snap)
+    if mask is None:
+        mask = pile_mask(snap)
+    use = mask & (snap['birth'] >= 0)
+    rz, _ = meridian(snap['pos'][use])
+    birth = snap['birth'][use]
+    pts = np.asarray(points_rz, dtype=float).reshape(-1, 2)
+    k = len(pts)
+    incl, r2, count, grad = (np.full(k, np.nan) for _ in range(4))
+    for i, p in enumerate(pts):
+        near = ((rz - p) ** 2).sum(axis=1) < radius * radius
+        n = int(near.sum())
+        count[i] = n
+        if n < min_grains:
+            continue
+        X = np.column_stack([np.ones(n), rz[near] - p])
+        y = birth[near]
+        coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+        resid = y - X @ coef
+        sst = ((y - y.mean()) ** 2).sum()
+        r2[i] = 1 - (resid ** 2).sum() / sst if sst > 0 else 0.0
+        gr, gz = coef[1], coef[2]
+        grad[i] = math.hypot(gr, gz)
+        if grad[i] > 0:
+            incl[i] = _line_angles(np.array([gz]), np.array([-gr]))[1][0]
+    return {'inclination_deg': incl, 'r2': r2, 'n': count, 'gradient_s_m': grad}
+
+
+def line_angle_between(incl1_deg, incl2_deg):
+    """Angle [deg] in [0, 90] between lines of inclinations ``incl1_deg`` and ``incl2_deg``."""
+    diff = np.mod(np.asarray(incl1_deg, dtype=float) - np.asarray(incl2_deg, dtype=float), 180.0)
+    return np.minimum(diff, 180.0 - diff)
+
+
+def fossil_law(snap, cyl, layer_radius, surface_slope_deg, min_r2=0.3, n_perm=50, seed=0):
+    """Moreau's empirical law for cylindrical cuts, tested: the force density on a cylindrical
+    cut points along the meridian section of a nearby fossil layer.
+
+    For every cut of ``cyl`` (:func:`cylindrical_cut_directions`, with an optional bool grid
+    ``inside``) carrying contacts, the angle between the line of T and the local layer
+    (:func:`layer_directions` with ``layer_radius`` [m]) is measured, where the layering explains
+    at least ``min_r2`` of the birth-time spread. Two null models give the angles the law would
+    have by chance: the free surface's direction (a line of inclination -``surface_slope_deg``;
+    nan skips it) and a random layer (the layer direction of another cut, ``n_perm``
+    permutations with a fixed ``seed``). Uniformly random lines would give 45° on average.
+
+    :returns: dict ``angle_layer_deg`` (per cut used), ``angle_surface_deg``,
+        ``angle_random_layer_deg`` (mean over permutations, per cut), ``r``, ``z`` [m],
+        ``n_cuts``, ``median_layer_deg``, ``median_surface_deg``, ``median_random_deg``,
+        ``mean_layer_deg``, ``mean_random_deg``, ``fraction_within_15deg``, ``advantage_deg`` =
+        mean(random - layer) with ``advantage_ci95`` (t interval over cuts; cuts overlap, so
+        this interval is optimistic and the ensemble's interval over piles is the one to read).
+    """
+    ok = (cyl['count'] > 0) & np.isfinite(cyl['inclination_deg'])
+    if 'inside' in cyl:
+        ok &= cyl['inside']
+    r, z = cyl['r'][ok], cyl['z'][ok]
+    lay = layer_directions(snap, np.column_stack([r, z]), layer_radius)
+    good = np.isfinite(lay['inclination_deg']) & (lay['r2'] >= min_r2)
+    t_incl = cyl['inclination_deg'][ok][good]
+    l_incl = lay['inclination_deg'][good]
+    a_layer = line_angle_between(t_incl, l_incl)
+    a_surf = line_angle_between(t_incl, -surface_slope_deg) if math.isfinite(surface_slope_deg) \
+        else np.full(len(t_incl), np.nan)
+    rng = np.random.default_rng(seed)
+    if len(l_incl) > 1:
+        a_rand = np.mean([line_angle_between(t_incl, rng.permutation(l_incl)) for _ in range(n_perm)], axis=0)
+    else:
+        a_rand = np.full(len(l_incl), np.nan)
+    nan = float('nan')
+    med = lambda a: float(np.nanmedian(a)) if len(a) and np.isfinite(a).any() else nan
+    adv = mean_interval(a_rand - a_layer) if len(a_layer) else mean_interval([])
+    return {'angle_layer_deg': a_layer, 'angle_surface_deg': a_surf, 'angle_random_layer_deg': a_rand,
+            'r': r[good], 'z': z[good], 'n_cuts': int(good.sum()), 'n_cuts_no_layering': int((~good).sum()),
+            'median_layer_deg': med(a_layer), 'median_surface_deg': med(a_surf), 'median_random_deg': med(a_rand),
+            'mean_layer_deg': float(a_layer.mean()) if len(a_layer) else nan,
+            'mean_random_deg': float(a_rand.mean()) if len(a_rand) else nan,
+            'fraction_within_15deg': float((a_layer < 15).mean()) if len(a_layer) else nan,
+            'advantage_deg': adv['mean'], 'advantage_ci95': adv['ci95']}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -677,6 +1004,128 @@ def ground_pressure(snap, ring_width, r_max=None, n_sectors=8, rho_bulk=None, H=
             'p_over_hydrostatic': pressure / hydro if hydro > 0 else np.full(n_rings, np.nan),
             'total_load_N': float(load.sum()),
             'pile_weight_N': float(grain_masses(snap)[~snap['fixed']].sum() * g)}
+
+
+# ---------------------------------------------------------------------------------------------
+# small-sample statistics (numpy only)
+
+_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+         2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+         2.052, 2.048, 2.045, 2.042)
+
+
+def t_quantile_975(df):
+    """0.975 quantile of Student's t with ``df`` degrees of freedom (table to 30, then the
+    normal's 1.960 corrected by 2.4/df, within 0.002 of the exact value)."""
+    df = int(df)
+    if df < 1:
+        return float('nan')
+    return _T975[df - 1] if df <= 30 else 1.960 + 2.4 / df
+
+
+def t_cdf(t, df):
+    """Cumulative distribution of Student's t (``df`` > 0) at ``t``, by Simpson's rule on the
+    density from 0 to |t| (2000 panels: error below 1e-9 for |t| < 50)."""
+    if not math.isfinite(t):
+        return 0.0 if t < 0 else 1.0
+    x = np.linspace(0.0, min(abs(t), 1e3), 4001)
+    logc = math.lgamma((df + 1) / 2) - math.lgamma(df / 2) - 0.5 * math.log(df * math.pi)
+    f = np.exp(logc - (df + 1) / 2 * np.log1p(x * x / df))
+    h = x[1] - x[0]
+    half = h / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum())
+    return 0.5 + half if t >= 0 else 0.5 - half
+
+
+def mean_interval(values):
+    """Mean of the finite ``values``, their standard deviation (ddof 1), the standard error and
+    the 95 % Student-t interval. Returns a dict (nan entries with fewer than two values)."""
+    v = np.asarray([x for x in values if x is not None and math.isfinite(x)], dtype=float)
+    nan = float('nan')
+    if len(v) == 0:
+        return {'n': 0, 'mean': nan, 'std': nan, 'sem': nan, 'ci95': (nan, nan)}
+    m = float(v.mean())
+    if len(v) < 2:
+        return {'n': 1, 'mean': m, 'std': nan, 'sem': nan, 'ci95': (nan, nan)}
+    sd = float(v.std(ddof=1))
+    se = sd / math.sqrt(len(v))
+    q = t_quantile_975(len(v) - 1)
+    return {'n': int(len(v)), 'mean': m, 'std': sd, 'sem': se, 'ci95': (m - q * se, m + q * se)}
+
+
+def jackknife_ratio_dip(num, den, w_num=1.0, w_den=1.0):
+    """D = 1 - (w_num·sum num)/(w_den·sum den) over groups (sectors or piles), with its
+    delete-one jackknife standard error, the 95 % Student-t interval (groups - 1 degrees of
+    freedom) and the one-sided confidence that D > 0 from the t statistic D/se.
+
+    :param num, den: per-group totals (the central and the reference loads).
+    :returns: dict ``D``, ``se``, ``ci95``, ``confidence_positive``, ``groups``."""
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
+    k = len(num)
+    nan = float('nan')
+    if k == 0 or den.sum() <= 0:
+        return {'D': nan, 'se': nan, 'ci95': (nan, nan), 'confidence_positive': nan, 'groups': k}
+    D = 1 - (w_num * num.sum()) / (w_den * den.sum())
+    if k < 2:
+        return {'D': float(D), 'se': nan, 'ci95': (nan, nan), 'confidence_positive': nan, 'groups': k}
+    den_minus = den.sum() - den
+    with np.errstate(divide='ignore', invalid='ignore'):
+        loo = 1 - (w_num * (num.sum() - num)) / (w_den * den_minus)
+    loo = loo[np.isfinite(loo)]
+    if len(loo) < 2:
+        return {'D': float(D), 'se': nan, 'ci95': (nan, nan), 'confidence_positive': nan, 'groups': k}
+    se = math.sqrt((len(loo) - 1) / len(loo) * ((loo - loo.mean()) ** 2).sum())
+    q = t_quantile_975(k - 1)
+    conf = t_cdf(D / se, k - 1) if se > 0 else (1.0 if D > 0 else 0.0)
+    return {'D': float(D), 'se': se, 'ci95': (D - q * se, D + q * se), 'confidence_positive': conf,
+            'groups': k}
+
+
+DIP_DISC_D = 2.0        # the central disc: r < 2 mean diameters (0.75 cm, the feed's radius)
+DIP_RING_D = 4.0        # the reference annulus: 2 d <= r < 4 d
+
+
+def central_dip(snap, r0_d=DIP_DISC_D, r1_d=DIP_RING_D, n_sectors=8, d=None):
+    """The central dip of the floor pressure as a statistic:
+
+        D = 1 - p(r < r0) / p(r0 <= r < r1),
+
+    the mean pressure on the central disc over the mean pressure on the annulus around it, with
+    r0 = ``r0_d``·d and r1 = ``r1_d``·d in mean grain diameters d (so piles of every size compare:
+    the disc is the feed zone, 0.75 cm with the paper's grains). D > 0 is a dip, D = 0 none. A fixed
+    reference annulus, not the largest ring: the largest of several noisy rings is biased high
+    and would find a dip in a flat floor.
+
+    The uncertainty is the delete-one-sector jackknife over ``n_sectors`` azimuthal sectors
+    (paired: a sector's disc and annulus loads leave together), with a Student-t interval of
+    n_sectors - 1 degrees of freedom, and ``confidence_positive`` the one-sided confidence that
+    D > 0. Pressures use the floor loads of :func:`ground_pressure` (pile grains on paving grains).
+
+    :returns: dict ``D``, ``se``, ``ci95``, ``confidence_positive``, ``p_disc_Pa``, ``p_ring_Pa``,
+        ``n_disc``, ``n_ring`` (contacts), ``r0``, ``r1`` [m], ``sector_disc_N``,
+        ``sector_ring_N`` (loads per sector), ``note`` (why D is nan, if it is).
+    """
+    snap = _normalise(snap)
+    d = mean_diameter(snap) if d is None else float(d)
+    r0, r1 = r0_d * d, r1_d * d
+    point, load = _floor_loads(snap)
+    r = np.hypot(point[:, 0], point[:, 1])
+    phi = np.mod(np.arctan2(point[:, 1], point[:, 0]), 2 * math.pi)
+    s = np.minimum((phi / (2 * math.pi / n_sectors)).astype(int), n_sectors - 1)
+    disc, ring = r < r0, (r >= r0) & (r < r1)
+    a_disc, a_ring = math.pi * r0 ** 2, math.pi * (r1 ** 2 - r0 ** 2)
+    num = np.bincount(s[disc], weights=load[disc], minlength=n_sectors)
+    den = np.bincount(s[ring], weights=load[ring], minlength=n_sectors)
+    res = jackknife_ratio_dip(num, den, 1.0 / a_disc, 1.0 / a_ring)
+    note = ''
+    if den.sum() <= 0:
+        note = 'no load on the reference annulus'
+    elif disc.sum() == 0:
+        note = 'no floor contact in the central disc (D = 1 by definition, no interval)'
+        res.update(se=float('nan'), ci95=(float('nan'), float('nan')), confidence_positive=float('nan'))
+    res.update(p_disc_Pa=float(num.sum() / a_disc), p_ring_Pa=float(den.sum() / a_ring),
+               n_disc=int(disc.sum()), n_ring=int(ring.sum()), r0=r0, r1=r1,
+               sector_disc_N=num, sector_ring_N=den, note=note)
+    return res
 
 
 # ---------------------------------------------------------------------------------------------

@@ -176,32 +176,50 @@ def fig_slices(snaps, fossil, path, half_thickness=0.01):
 
 def fig_reciprocal(recip, path):
     """Figure 3: reciprocal cuts, n·T' against n'·T [dPa] for every pair of bands, with the
-    line of perfect reciprocity. Writes PNG ``path``."""
+    line of perfect reciprocity; beside it, the distribution of the relative difference for the
+    true pairs and for the null pairing (T' from another place). When no pair fits inside the
+    pile the figure says so instead of staying empty. Writes PNG ``path``."""
     a, b = recip['nT2'] * DPA, recip['n2T'] * DPA
     ok = np.isfinite(recip['rel'])
-    fig = _figure(5, 5)
-    ax = fig.add_subplot(1, 1, 1)
-    ax.scatter(b[ok], a[ok], s=10, c='k')
-    if ok.any():
-        lim = [min(a[ok].min(), b[ok].min()), max(a[ok].max(), b[ok].max())]
-        ax.plot(lim, lim, 'r-', lw=0.8, label="n·T' = n'·T")
-        ax.legend(fontsize=8)
+    fig = _figure(9, 4.2)
+    ax = fig.add_subplot(1, 2, 1)
+    if not ok.any():
+        ax.text(0.5, 0.5, 'no pair of bands fits inside this pile\n(bands 3 grain diameters long need\n'
+                'a pile at least ~5 diameters thick)', ha='center', va='center', transform=ax.transAxes, fontsize=9)
+        ax.set_axis_off()
+        fig.suptitle('reciprocal cuts: no data', fontsize=9)
+        return _save(fig, path)
+    ax.scatter(b[ok], a[ok], s=8, c='k')
+    lim = [min(a[ok].min(), b[ok].min()), max(a[ok].max(), b[ok].max())]
+    ax.plot(lim, lim, 'r-', lw=0.8, label="n·T' = n'·T")
+    ax.legend(fontsize=8)
     ax.set_xlabel("n'·T [dPa]")
     ax.set_ylabel("n·T' [dPa]")
-    ax.set_title('reciprocal cuts: %d pairs, |Δ|/√(|T||T\'|) = %.3f ± %.3f'
-                 % (recip['n_pairs'], recip['rel_mean'], recip['rel_std']), fontsize=9)
     ax.set_aspect('equal', adjustable='datalim')
+    ax.set_title('%d pairs, correlation %.3f' % (recip['n_pairs'], recip['corr']), fontsize=9)
+    hx = fig.add_subplot(1, 2, 2)
+    bins = np.linspace(0, max(2.0, np.nanmax(recip['rel'])), 30)
+    hx.hist(recip['rel'][ok], bins=bins, color='k', alpha=0.7, label='crossing pairs: median %.3f' % recip['rel_median'])
+    null = recip['rel_null'][np.isfinite(recip['rel_null'])]
+    if len(null):
+        hx.hist(np.clip(null, 0, bins[-1]), bins=bins, histtype='step', color='tab:red', lw=1.2,
+                label='null (T\' from elsewhere): median %.3f' % recip['rel_null_median'])
+    hx.set_xlabel("|n·T' - n'·T| / sqrt(|T| |T'|)")
+    hx.set_ylabel('pairs')
+    hx.legend(fontsize=7)
     return _save(fig, path)
 
 
-def fig_cylindrical(snap, cyl, fossils, path, half_thickness=0.01):
+def fig_cylindrical(snap, cyl, fossils, path, half_thickness=0.01, law=None):
     """Figure 4: directions of the force density on cylindrical cuts (segments of fixed length,
     width growing with |T|), drawn at (±r, z) over the outlines of the fossil-layer grains of the
     slab |y| < half_thickness [m]. ``cyl`` is a :func:`pile_analysis.cylindrical_cut_directions`
     result, optionally with a bool grid ``inside`` selecting the points drawn; ``fossils`` is a
-    list of (t1, t2) [s]. Writes PNG ``path``."""
-    fig = _figure(9, 4.5)
-    ax = fig.add_subplot(1, 1, 1)
+    list of (t1, t2) [s]. With ``law`` (:func:`pile_analysis.fossil_law`), a second panel shows
+    the angle between each force density and the local fossil layer against the null model of a
+    random layer. Writes PNG ``path``."""
+    fig = _figure(13 if law is not None else 9, 4.5)
+    ax = fig.add_axes([0.05, 0.1, 0.6, 0.8]) if law is not None else fig.add_subplot(1, 1, 1)
     _draw_slice(ax, snap, half_thickness, edge='0.85', lw=0.3)
     colours = ['k', 'tab:red', 'tab:blue', 'tab:green']
     m = pa.slice_mask(snap, half_thickness)
@@ -218,6 +236,22 @@ def fig_cylindrical(snap, cyl, fossils, path, half_thickness=0.01):
     ax.set_xlabel('x [cm]')
     ax.set_ylabel('z [cm]')
     ax.set_title('force density on cylindrical cuts (band height %.2g cm)' % (cyl['band_height'] * CM), fontsize=9)
+    if law is not None:
+        hx = fig.add_axes([0.72, 0.12, 0.26, 0.74])
+        bins = np.linspace(0, 90, 19)
+        if law['n_cuts']:
+            hx.hist(law['angle_layer_deg'], bins=bins, color='tab:purple', alpha=0.7,
+                    label='local fossil layer: median %.0f°' % law['median_layer_deg'])
+            hx.hist(law['angle_random_layer_deg'], bins=bins, histtype='step', color='k', lw=1.2,
+                    label='random layer (null): median %.0f°' % law['median_random_deg'])
+            hx.legend(fontsize=6)
+            hx.set_title('%d cuts; random - layer = %.1f° [%.1f, %.1f]' % ((law['n_cuts'], law['advantage_deg'])
+                         + tuple(law['advantage_ci95'])), fontsize=7)
+        else:
+            hx.text(0.5, 0.5, 'no cut with a measurable\nlocal layering', ha='center', va='center',
+                    transform=hx.transAxes, fontsize=8)
+        hx.set_xlabel('angle between T and the layer [deg]', fontsize=8)
+        hx.set_ylabel('cuts', fontsize=8)
     return _save(fig, path)
 
 
@@ -240,7 +274,7 @@ def _direction_segments(cyl):
     return LineCollection(segs, linewidths=widths, colors='tab:purple', zorder=3)
 
 
-def fig_ground_pressure(gp, path):
+def fig_ground_pressure(gp, path, dip=None):
     """Figure 5: pressure on the floor per ring [dPa] against the distance to the axis [cm],
     with sector error bars, the hydrostatic reference rho_bulk·g·H and a right axis normalised by
     it. Writes PNG ``path``."""
@@ -261,7 +295,12 @@ def fig_ground_pressure(gp, path):
         sec = ax.secondary_yaxis('right', functions=(lambda p: p / hydro, lambda q: q * hydro))
         sec.set_ylabel('p / (ρ_bulk g H)')
     ax.set_xlim(0, gp['r_out'][-1] * CM)
-    ax.set_title('pressure on the floor per ring (ring width %.3g cm)' % (w[0]), fontsize=9)
+    title = 'pressure on the floor per ring (ring width %.3g cm)' % (w[0])
+    if dip is not None and np.isfinite(dip['D']):
+        title += ('\ncentral dip D = 1 - p(r<%.2g cm)/p(%.2g-%.2g cm) = %.2f, 95%% interval [%.2f, %.2f], '
+                  'confidence of a dip %.0f%%' % (dip['r0'] * CM, dip['r0'] * CM, dip['r1'] * CM, dip['D'],
+                                                 dip['ci95'][0], dip['ci95'][1], 100 * dip['confidence_positive']))
+    ax.set_title(title, fontsize=8)
     return _save(fig, path)
 
 
@@ -314,23 +353,37 @@ def fig_force_chains(snap, path, half_thickness=0.01, max_width=3.0):
 
 
 def fig_profile(prof, path):
-    """Free-surface points per sector, the median profile and the fitted flank line [cm], with
-    the slope and its error in the title. Writes PNG ``path``."""
+    """Free surface [cm]: every exposed grain top (grey), those in the flank window coloured by
+    their weight in the robust fit, the median profile of the highest grain per sector and bin,
+    and the fitted flank line (solid where it was fitted, dashed extended to the axis and the
+    floor). The title gives the flank slope with its bootstrap error and the apex-to-toe chord
+    angle, or says why no flank could be measured. Writes PNG ``path``."""
     fig = _figure(6.5, 4)
     ax = fig.add_subplot(1, 1, 1)
-    ax.plot(prof['r_sector'].ravel() * CM, prof['h_sector'].ravel() * CM, '.', ms=2, color='0.6',
-            label='highest grain top per sector and bin')
-    ax.plot(prof['r'] * CM, prof['h'] * CM, 'k-', lw=1, label='median profile h(r)')
-    a, b = prof['fit_line']
-    if np.isfinite(prof['base_radius']):
+    r, h = prof['surface_r'] * CM, prof['surface_h'] * CM
+    win = prof['in_window']
+    ax.plot(r[~win], h[~win], '.', ms=2, color='0.7', label='exposed grain tops')
+    if win.any():
+        sc = ax.scatter(r[win], h[win], s=3, c=prof['weight'][win], cmap='viridis', vmin=0, vmax=1,
+                        label='flank window (colour: fit weight)')
+        fig.colorbar(sc, ax=ax, fraction=0.04, pad=0.01).set_label('bisquare weight', fontsize=7)
+    ax.plot(prof['r'] * CM, prof['h'] * CM, 'k-', lw=1, label='median profile (highest grain per sector and bin)')
+    a_, b_ = prof['fit_line']
+    if np.isfinite(prof['slope_deg']):
+        r0, r1 = prof['fit_r_range']
         rr = np.array([0.0, prof['base_radius']])
-        ax.plot(rr * CM, (a + b * rr) * CM, 'r--', lw=1, label='flank fit')
+        ax.plot(rr * CM, (a_ + b_ * rr) * CM, 'r--', lw=0.8)
+        rr = np.array([r0, r1])
+        ax.plot(rr * CM, (a_ + b_ * rr) * CM, 'r-', lw=2, label='flank fit (where fitted)')
+        title = ('flank slope %.1f ± %.1f° (paper 26°), chord angle %.1f°, H = %.2f cm'
+                 % (prof['slope_deg'], prof['slope_err_deg'], prof['chord_angle_deg'], prof['H'] * CM))
+    else:
+        title = '%s; chord angle %.1f°, H = %.2f cm' % (prof['slope_note'], prof['chord_angle_deg'], prof['H'] * CM)
     ax.set_xlabel('r [cm]')
     ax.set_ylabel('height above the floor [cm]')
-    ax.set_title('slope %.2f ± %.2f°, H = %.2f cm, base radius %.2f cm'
-                 % (prof['slope_deg'], prof['slope_err_deg'], prof['H'] * CM, prof['base_radius'] * CM), fontsize=9)
+    ax.set_title(title, fontsize=8)
     ax.set_aspect('equal', adjustable='datalim')
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=6, loc='upper right')
     return _save(fig, path)
 
 
@@ -376,10 +429,19 @@ def _slice_epochs(entries, main, t_fossil_end, max_panels):
     return [after[k] for k in pick]
 
 
+def _surface_height(prof, r):
+    """Height of the free surface above the floor at radii r [m]: the median profile,
+    interpolated (0 beyond it)."""
+    ok = np.isfinite(prof['h'])
+    if not ok.any():
+        return np.zeros_like(np.asarray(r, dtype=float))
+    return np.interp(r, prof['r'][ok], prof['h'][ok], right=0.0)
+
+
 def _pile_grids(prof, step, inner):
-    """Grid (radii, heights) [m] with spacing ``step``, radii from ``inner`` to the base radius,
-    heights (absolute z) from ``inner`` above the floor to the apex."""
-    R, H, zf = prof['base_radius'], prof['H'], prof['z_floor']
+    """Grid (radii, heights) [m] with spacing ``step``, radii from ``inner`` to the pile's
+    radius, heights (absolute z) from ``inner`` above the floor to the apex."""
+    R, H, zf = prof['profile_radius'], prof['H'], prof['z_floor']
     if not (np.isfinite(R) and R > inner):
         R = np.nanmax(prof['r'])
     radii = np.arange(inner, R, step)
@@ -387,15 +449,15 @@ def _pile_grids(prof, step, inner):
     return radii, heights
 
 
-def _reciprocal_centres(prof, length):
-    """Centres (r, z) [m] for the reciprocal-cut pairs, on a grid of spacing ``length``/2:
-    0.6 band length (so every band lies inside) below the fitted surface and above the floor,
-    and 0.6 band length from the axis."""
-    a, b = prof['fit_line']
-    margin = 0.6 * length
+def _reciprocal_centres(prof, length, clearance):
+    """Centres (r, z) [m] for the reciprocal-cut pairs, on a grid of spacing ``length``/2, where
+    every band of the pair lies inside the pile: at least length/2 + ``clearance`` from the axis,
+    the floor and the free surface (the median profile)."""
+    margin = 0.5 * length + clearance
     radii, heights = _pile_grids(prof, length / 2, margin)
-    return [(r, z) for r in radii for z in heights
-            if z - prof['z_floor'] > margin and z - prof['z_floor'] + margin < a + b * r]
+    top = _surface_height(prof, radii)
+    return [(r, z) for r, hs in zip(radii, top) for z in heights
+            if z - prof['z_floor'] >= margin and z - prof['z_floor'] + margin <= hs]
 
 
 def _clean(value):
@@ -415,6 +477,38 @@ def _clean(value):
     return value
 
 
+def measure(snap, ring_width=None, n_sectors=8, band_length=None, band_height=None, clearance=None,
+            layer_radius=None):
+    """Every measurement of the pile analysis on one snapshot, no figure (lengths default to
+    multiples of the mean diameter d: rings 2 d, reciprocal bands 3 d long with d/2 of clearance
+    inside the pile, cylindrical bands 3 d high, fossil layers fitted within 2 d).
+
+    :returns: dict ``prof`` (:func:`pile_analysis.profile_and_slope`), ``gp`` (ground pressure),
+        ``dip`` (:func:`pile_analysis.central_dip`), ``recip`` (reciprocal cuts), ``cyl``
+        (cylindrical cuts with the grid ``inside``), ``law`` (:func:`pile_analysis.fossil_law`),
+        ``hist`` (contact orientations), ``settings``."""
+    d = pa.mean_diameter(snap)
+    ring_width = ring_width or 2 * d
+    band_length = band_length or 3 * d
+    band_height = band_height or 3 * d
+    clearance = 0.5 * d if clearance is None else clearance
+    layer_radius = layer_radius or 2 * d
+    prof = pa.profile_and_slope(snap, n_sectors=n_sectors)
+    gp = pa.ground_pressure(snap, ring_width, n_sectors=n_sectors, profile=prof)
+    dip = pa.central_dip(snap, n_sectors=n_sectors, d=d)
+    recip = pa.reciprocal_cuts(snap, pa.reciprocal_pairs(_reciprocal_centres(prof, band_length, clearance),
+                                                         length=band_length))
+    radii, heights = _pile_grids(prof, band_height * 2 / 3, band_height / 2)
+    cyl = pa.cylindrical_cut_directions(snap, radii, heights, band_height)
+    cyl['inside'] = cyl['z'] - prof['z_floor'] + band_height / 2 < _surface_height(prof, cyl['r'])
+    law = pa.fossil_law(snap, cyl, layer_radius, prof['slope_deg'])
+    hist = pa.contact_orientation_histogram(snap)
+    return {'prof': prof, 'gp': gp, 'dip': dip, 'recip': recip, 'cyl': cyl, 'law': law, 'hist': hist,
+            'settings': {'ring_width_m': ring_width, 'n_sectors': n_sectors, 'band_length_m': band_length,
+                         'band_height_m': band_height, 'band_clearance_m': clearance,
+                         'layer_radius_m': layer_radius}}
+
+
 def analyse(source, out_dir, epoch=None, fossil=None, half_thickness=0.01, ring_width=None,
             n_sectors=8, band_length=None, band_height=None, max_panels=4):
     """Run the whole sand-pile analysis and write every figure plus ``summary.json``.
@@ -428,7 +522,7 @@ def analyse(source, out_dir, epoch=None, fossil=None, half_thickness=0.01, ring_
     :param half_thickness: half thickness of the slice |y| < half_thickness [m] (paper: 1 cm).
     :param ring_width: ground-pressure ring width [m] (default 2 mean diameters).
     :param n_sectors: azimuthal sectors for slope and pressure errors.
-    :param band_length: reciprocal-cut band length [m] (default 4 mean diameters).
+    :param band_length: reciprocal-cut band length [m] (default 3 mean diameters).
     :param band_height: cylindrical-cut band height [m] (default 3 mean diameters).
     :param max_panels: at most this many epochs in Figure 2.
     :returns: the summary dict (also written to ``out_dir/summary.json``).
@@ -442,36 +536,28 @@ def analyse(source, out_dir, epoch=None, fossil=None, half_thickness=0.01, ring_
     fossils = _fossil_list(fossil) or _default_fossils(snap)
     d = pa.mean_diameter(snap)
     ring_width = ring_width or 2 * d
-    band_length = band_length or 4 * d
+    band_length = band_length or 3 * d
     band_height = band_height or 3 * d
 
-    prof = pa.profile_and_slope(snap, n_sectors=n_sectors)
-    gp = pa.ground_pressure(snap, ring_width, n_sectors=n_sectors, profile=prof)
-    recip = pa.reciprocal_cuts(snap, pa.reciprocal_pairs(_reciprocal_centres(prof, band_length),
-                                                         length=band_length))
-    radii, heights = _pile_grids(prof, band_height * 2 / 3, band_height / 2)
-    cyl = pa.cylindrical_cut_directions(snap, radii, heights, band_height)
-    a, b = prof['fit_line']
-    cyl['inside'] = cyl['z'] - prof['z_floor'] + band_height / 2 < a + b * cyl['r']
-    hist = pa.contact_orientation_histogram(snap)
+    m = measure(snap, ring_width=ring_width, n_sectors=n_sectors, band_length=band_length,
+                band_height=band_height)
     levels = pa.speed_levels(snap)
     panels = _slice_epochs(entries, main, fossils[0][1], max_panels)
     panel_snaps = [snap if k == main else pa.load_snapshot(entries[k][1]) for k in panels]
 
     out = lambda name: os.path.join(out_dir, name)
-    figures = [fig_profile(prof, out('fig0_profile.png')),
+    figures = [fig_profile(m['prof'], out('fig0_profile.png')),
                fig_speed(snap, out('fig1_speed.png'), levels=levels),
                fig_slices(panel_snaps, fossils[0], out('fig2_slices.png'), half_thickness),
-               fig_reciprocal(recip, out('fig3_reciprocal_cuts.png')),
-               fig_cylindrical(snap, cyl, fossils, out('fig4_cylindrical_cuts.png'), half_thickness),
-               fig_ground_pressure(gp, out('fig5_ground_pressure.png')),
-               fig_orientation(hist, out('fig6_contact_orientations.png')),
+               fig_reciprocal(m['recip'], out('fig3_reciprocal_cuts.png')),
+               fig_cylindrical(snap, m['cyl'], fossils, out('fig4_cylindrical_cuts.png'), half_thickness,
+                               law=m['law']),
+               fig_ground_pressure(m['gp'], out('fig5_ground_pressure.png'), dip=m['dip']),
+               fig_orientation(m['hist'], out('fig6_contact_orientations.png')),
                fig_force_chains(snap, out('fig7_force_chains.png'), half_thickness)]
-    summary = _summary(snap, prof, gp, recip, cyl, hist, levels, fossils,
-                       [entries[k][0] for k in panels], [os.path.basename(f) for f in figures])
-    summary['settings'] = {'half_thickness_m': half_thickness, 'ring_width_m': ring_width,
-                           'n_sectors': n_sectors, 'band_length_m': band_length,
-                           'band_height_m': band_height}
+    summary = _summary(snap, m, levels, fossils, [entries[k][0] for k in panels],
+                       [os.path.basename(f) for f in figures])
+    summary['settings'] = dict(m['settings'], half_thickness_m=half_thickness)
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
         summary['run_parameters'] = pa.run_parameters(source)
     summary = _clean(summary)
@@ -489,49 +575,63 @@ def _fossil_list(fossil):
     return [(float(a), float(b)) for a, b in fossil]
 
 
-def _summary(snap, prof, gp, recip, cyl, hist, levels, fossils, panel_times, figures):
+def _summary(snap, m, levels, fossils, panel_times, figures):
     """Every number of the analysis in one flat-ish dict; units are in the key names."""
+    prof, gp, dip, recip, cyl, law, hist = (m[k] for k in ('prof', 'gp', 'dip', 'recip', 'cyl', 'law', 'hist'))
     p = gp['pressure_Pa']
     peak = int(np.argmax(p)) if len(p) else 0
     hydro = gp['hydrostatic_Pa']
     rho_g_H = snap['rho'] * snap['g'] * prof['H']
     n_cont = len(pa._grain_contacts(snap)['i1'])
+    free = ~snap['fixed']
+    speed = np.linalg.norm(snap['vel'][free], axis=1)
     s = {'snapshot': snap.get('path'), 'time_s': snap['time'], 'g_m_s2': snap['g'],
          'n_grains': len(snap['pos']), 'n_fixed_grains': int(snap['fixed'].sum()),
          'n_pile_grains': prof['n_grains'], 'n_contacts': n_cont,
          'n_contacts_loaded': int((np.linalg.norm(snap['c_force'], axis=1) > 0).sum()),
-         'slope_deg': prof['slope_deg'], 'slope_err_deg': prof['slope_err_deg'],
-         'slope_fit_err_deg': prof['slope_fit_err_deg'],
-         'slope_sector_std_deg': prof['slope_sector_std_deg'],
-         'slope_sector_err_deg': prof['slope_sector_err_deg'], 'slope_paper_deg': 26.0,
-         'H_m': prof['H'], 'H_cm': prof['H'] * CM, 'H_cone_m': prof['H_cone'],
-         'base_radius_m': prof['base_radius'], 'base_radius_cm': prof['base_radius'] * CM,
+         'mean_diameter_m': prof['d'],
+         'slope_deg': prof['slope_deg'], 'slope_err_deg': prof['slope_err_deg'], 'slope_note': prof['slope_note'],
+         'slope_sector_deg': prof['slope_sector_deg'], 'slope_n_fit_points': prof['n_fit_points'],
+         'slope_fit_r_range_m': prof['fit_r_range'], 'chord_angle_deg': prof['chord_angle_deg'],
+         'R2_m': prof['R2'], 'slope_ls_window_deg': prof['slope_ls_window_deg'], 'slope_paper_deg': 26.0,
+         'H_m': prof['H'], 'H_cm': prof['H'] * CM, 'H_over_d': prof['H'] / prof['d'],
+         'flank_base_radius_m': prof['base_radius'],
+         'base_radius_m': prof['profile_radius'], 'base_radius_cm': prof['profile_radius'] * CM,
          'z_floor_m': prof['z_floor'], 'rho_grain_kg_m3': snap['rho'],
          'rho_bulk_kg_m3': gp['rho_bulk'], 'rho_bulk_g_cm3': gp['rho_bulk'] / 1000.0,
          'packing_fraction': gp['rho_bulk'] / snap['rho'], 'pile_volume_m3': prof['volume'],
          'hydrostatic_Pa': hydro, 'hydrostatic_dPa': hydro * DPA,
          'rho_grain_g_H_Pa': rho_g_H, 'ring_width_m': float(gp['r_out'][0] - gp['r_in'][0]),
          'p_center_Pa': p[0], 'p_center_dPa': p[0] * DPA, 'p_center_err_Pa': gp['err_Pa'][0],
+         'p_center_err_dPa': gp['err_Pa'][0] * DPA,
          'p_center_over_hydrostatic': p[0] / hydro if hydro > 0 else None,
          'p_center_over_rho_grain_g_H': p[0] / rho_g_H,
          'p_peak_Pa': p[peak], 'p_peak_dPa': p[peak] * DPA, 'p_peak_err_Pa': gp['err_Pa'][peak],
          'p_peak_radius_m': gp['r_mid'][peak], 'p_peak_radius_cm': gp['r_mid'][peak] * CM,
          'p_peak_over_hydrostatic': p[peak] / hydro if hydro > 0 else None,
          'p_peak_over_rho_grain_g_H': p[peak] / rho_g_H,
-         'central_dip': bool(peak > 0 and p[0] < p[peak]),
          'floor_load_N': gp['total_load_N'], 'pile_weight_N': gp['pile_weight_N'],
          'floor_load_over_weight': gp['total_load_N'] / gp['pile_weight_N'] if gp['pile_weight_N'] > 0 else None,
-         'p_center_err_dPa': gp['err_Pa'][0] * DPA,
+         'dip': {k: dip[k] for k in ('D', 'se', 'ci95', 'confidence_positive', 'p_disc_Pa', 'p_ring_Pa',
+                                      'n_disc', 'n_ring', 'r0', 'r1', 'sector_disc_N', 'sector_ring_N', 'note')},
          'rings': {'r_mid_m': gp['r_mid'], 'pressure_Pa': p, 'err_Pa': gp['err_Pa'],
                    'pressure_dPa': p * DPA, 'err_dPa': gp['err_Pa'] * DPA,
                    'n_contacts': gp['n_contacts'], 'p_over_hydrostatic': gp['p_over_hydrostatic'],
                    'p_over_rho_grain_g_H': gp['p_over_rho_grain_g_H']},
-         'reciprocity': {k: recip[k] for k in ('n_pairs', 'rel_mean', 'rel_std', 'rel_median', 'corr',
-                                               'rms_diff_Pa', 'rms_mean_Pa')},
+         'reciprocity': dict({k: recip[k] for k in ('n_pairs', 'rel_mean', 'rel_std', 'rel_median', 'corr',
+                                                    'rms_diff_Pa', 'rms_mean_Pa', 'rel_null_mean',
+                                                    'rel_null_median')},
+                             rel=recip['rel'], nT2_Pa=recip['nT2'], n2T_Pa=recip['n2T']),
          'cylindrical_cuts': _cyl_summary(cyl, prof),
+         'fossil_law': {k: law[k] for k in ('n_cuts', 'n_cuts_no_layering', 'median_layer_deg',
+                                            'median_surface_deg', 'median_random_deg', 'mean_layer_deg',
+                                            'mean_random_deg', 'fraction_within_15deg', 'advantage_deg',
+                                            'advantage_ci95', 'angle_layer_deg', 'angle_random_layer_deg',
+                                            'angle_surface_deg')},
          'fabric': {'n_contacts': hist['n_contacts'], 'anisotropy': hist['anisotropy'],
                     'fabric_eigenvalues': hist['fabric_eigenvalues'], 'fabric_zz': hist['fabric_zz']},
          'speed': {'vmax_m_s': levels['vmax'], 'vmax_cm_s': levels['vmax'] * CM,
+                   'median_m_s': float(np.median(speed)) if len(speed) else None,
                    'thresholds_m_s': levels['thresholds'], 'class_counts': levels['counts']},
          'fossil_layers_s': [list(f) for f in fossils],
          'fossil_counts': [int(pa.fossil_layer(snap, *f).sum()) for f in fossils],
@@ -539,18 +639,26 @@ def _summary(snap, prof, gp, recip, cyl, hist, levels, fossils, panel_times, fig
          'conventions': {
              'units': 'SI unless the key says otherwise (_cm, _dPa, _deg, _g_cm3); 1 Pa = 10 dPa',
              'pressure': 'compression positive: vertical load of pile grains on paving grains / ring area',
-             'slope_err_deg': 'max(standard error of the pooled flank fit, sector std / sqrt(n_sectors))',
+             'slope_deg': 'robust (bisquare) fit of the exposed grain tops where the pile is >= 2 d thick, '
+                          '>= 3 d from the axis, >= 1 d below the apex; null when the pile has no straight flank (slope_note)',
+             'slope_err_deg': 'bootstrap standard error over azimuthal sectors',
+             'chord_angle_deg': 'atan((H - 2 d)/R2), R2 = radius where the pile is 2 grains thick',
+             'slope_ls_window_deg': 'the estimator used before (least squares, 15-80 % of H); biased low, for comparison only',
+             'base_radius_m': 'outermost radius where the median profile is >= 1 mean diameter high',
+             'dip': 'D = 1 - p(r < 2 d)/p(2 d <= r < 4 d); jackknife over sectors, t interval',
              'band_T': 'force of the + side (where n points) on the - side per band area; n = tangent p0->p1 turned +90 deg in (r, z)',
-             'reciprocity_rel': "|n.T' - n'.T| / sqrt(|T| |T'|) per pair of crossing bands",
+             'reciprocity_rel': "|n.T' - n'.T| / sqrt(|T| |T'|) per pair of crossing bands; rel_null: T' from another place",
+             'fossil_law': 'angle between the force density on a cylindrical cut and the local fossil layer (birth-time level set), '
+                           'against a random layer; advantage = mean(random - layer)',
              'central_pressure': 'ring 0, the disc r < ring_width'}}
     return s
 
 
 def _cyl_summary(cyl, prof):
     """Counts and mean inclination [deg] of the cylindrical-cut force densities inside the pile
-    (band top below the fitted surface), split at half the base radius (centre / flank)."""
+    (band top below the surface), split at half the pile's radius (centre / flank)."""
     ok = (cyl['count'] > 0) & np.isfinite(cyl['inclination_deg']) & cyl['inside']
-    R = prof['base_radius']
+    R = prof['profile_radius']
     inner = ok & (cyl['r'] < R / 2)
     outer = ok & (cyl['r'] >= R / 2)
     mean = lambda m: float(np.mean(cyl['inclination_deg'][m])) if m.any() else None

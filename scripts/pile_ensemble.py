@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Ensembles of Moreau sand piles: run them, watch them, analyse them.
+
+    python3 scripts/pile_ensemble.py run OUT --sizes 300,1000,2000 --seeds 1-8 [--relax 1] [--jobs 2] [-- PILE OPTIONS]
+    python3 scripts/pile_ensemble.py status OUT
+    python3 scripts/pile_ensemble.py analyse OUT [--out DIR]
+
+``run`` starts one YADE process per pile (``scripts/pile.py``, one thread each, ``--jobs`` at a
+time), snapshots at half the feed, at the end of the feed and after ``--relax`` seconds of
+relaxation. Calling it again resumes: finished runs are skipped, interrupted ones continue from
+their checkpoints, failed ones are reported (``--retry-failed`` tries them again). ``analyse``
+runs the pile analysis on every snapshot of every finished run and writes per-run summaries,
+the ensemble statistics (means, spreads, 95 % intervals) and figures. Needs no YADE for
+``status`` and ``analyse``; all three work with Debian's /usr/bin/python3.
+"""
+import argparse
+import importlib.util
+import os
+import sys
+
+REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
+PKG = os.path.join(REPO, 'py', 'yadecd')
+
+
+def _load(name, filename):
+    """Import a module of py/yadecd from its file (the yadecd package itself needs YADE)."""
+    key = '_yadecd_' + name
+    if key in sys.modules:
+        return sys.modules[key]
+    spec = importlib.util.spec_from_file_location(key, os.path.join(PKG, filename))
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[key] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    extra = []
+    if '--' in argv:
+        k = argv.index('--')
+        argv, extra = argv[:k], argv[k + 1:]
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    sub = p.add_subparsers(dest='cmd', required=True)
+    r = sub.add_parser('run', help='run (or resume) the ensemble')
+    r.add_argument('out')
+    r.add_argument('--sizes', default='2000', help='grain counts, comma-separated')
+    r.add_argument('--seeds', default='1-8', help="seeds: '1-8' or '1,2,5'")
+    r.add_argument('--relax', type=float, default=1.0, help='relaxation after the feed [s]')
+    r.add_argument('--jobs', type=int, default=2, help='runs at a time (one thread each)')
+    r.add_argument('--order', choices=('small-first', 'large-first'), default='small-first')
+    r.add_argument('--retry-failed', action='store_true')
+    s = sub.add_parser('status', help='one line per run')
+    s.add_argument('out')
+    a = sub.add_parser('analyse', help='per-run summaries, ensemble statistics and figures')
+    a.add_argument('out')
+    a.add_argument('--figures', default=None, help='output directory (default OUT/analysis)')
+    a.add_argument('--n-boot', type=int, default=2000, help='bootstrap resamples')
+    args = p.parse_args(argv)
+
+    ens = _load('ensemble', 'ensemble.py')
+    if args.cmd == 'run':
+        try:
+            sizes = [int(x) for x in args.sizes.split(',') if x.strip()]
+            seeds = ens.parse_seeds(args.seeds)
+        except ValueError as e:
+            p.error(str(e))
+        if not sizes or min(sizes) < 1:
+            p.error('--sizes must be positive grain counts')
+        if args.relax < 0 or args.jobs < 1:
+            p.error('--relax must be >= 0 and --jobs >= 1')
+        e = ens.Ensemble(args.out)
+        try:
+            e.plan(sizes, seeds, args.relax, extra)
+        except ValueError as err:
+            p.error(str(err))
+        ens.run_ensemble(args.out, REPO, jobs=args.jobs, order=args.order, retry_failed=args.retry_failed,
+                         log=lambda m: print(m, flush=True))
+        print('\n'.join(ens.status_lines(args.out)))
+        failed = [k for k, v in ens.Ensemble(args.out).runs().items() if v['state'] == 'failed']
+        if failed:
+            print('%d run(s) failed: %s (see their log.txt)' % (len(failed), ', '.join(sorted(failed))))
+        return 1 if failed else 0
+    if args.cmd == 'status':
+        print('\n'.join(ens.status_lines(args.out)))
+        return 0
+    stats = _load('pile_ensemble_analysis', 'pile_ensemble_analysis.py')
+    out = args.figures or os.path.join(args.out, 'analysis')
+    summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True))
+    print('written: %s' % os.path.join(out, 'ensemble_summary.json'))
+    return 0 if summary['n_runs_analysed'] else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
