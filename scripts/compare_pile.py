@@ -6,7 +6,8 @@ the CD engine and with YADE's linear soft contacts at several stiffnesses, side 
 
 Every case builds the same protocol (same seed, so the same feed positions) and is analysed by
 the same pile analysis (yadecd.pile_figures.analyse). Recorded per case: wall time, steps, wall
-time per simulated second, slope, apex height, central and peak ground pressure (also over the
+time per simulated second, flank slope (none on piles below about 2 cm), chord angle, the former
+slope estimator, apex height, central and peak ground pressure (also over the
 hydrostatic ρ_bulk·g·H), floor load over pile weight, largest and mean grain–grain overlap over
 the mean diameter at the end. Writes OUT/compare_pile.csv, OUT/compare_pile.png and copies both
 to docs/data and docs/figures with --docs.
@@ -40,7 +41,7 @@ CASES = {
     'md_1e8': ('MD linear, E = 1e8 Pa', dict(method='MD', young=1e8)),
 }
 FIELDS = ['case', 'label', 'method', 'young_Pa', 'dt_s', 'steps', 'wall_s', 'wall_per_sim_s', 'grains', 'contacts',
-          'slope_deg', 'slope_err_deg', 'H_cm', 'p_center_dPa', 'p_center_err_dPa', 'p_peak_dPa', 'p_peak_radius_cm',
+          'slope_deg', 'slope_err_deg', 'chord_angle_deg', 'slope_ls_window_deg', 'H_cm', 'p_center_dPa', 'p_center_err_dPa', 'p_peak_dPa', 'p_peak_radius_cm',
           'hydrostatic_dPa', 'p_center_over_hydrostatic', 'floor_load_over_weight', 'overlap_max_over_d',
           'overlap_mean_over_d', 'unconverged_steps']
 csv_path = os.path.join(args.out, 'compare_pile.csv')
@@ -69,7 +70,8 @@ def run_case(key):
     return dict(case=key, label=label, method=p['method'], young_Pa=p['young'] if p['method'] == 'MD' else '',
                 dt_s=p['dt'], steps=O.iter, wall_s=p['wall_time_s'], wall_per_sim_s=p['wall_time_s'] / sim,
                 grains=s['n_pile_grains'], contacts=s['n_contacts'], slope_deg=s['slope_deg'],
-                slope_err_deg=s['slope_err_deg'], H_cm=s['H_cm'], p_center_dPa=s['p_center_dPa'],
+                slope_err_deg=s['slope_err_deg'], chord_angle_deg=s['chord_angle_deg'],
+                slope_ls_window_deg=s['slope_ls_window_deg'], H_cm=s['H_cm'], p_center_dPa=s['p_center_dPa'],
                 p_center_err_dPa=s['p_center_err_Pa'] * 10, p_peak_dPa=s['p_peak_dPa'],
                 p_peak_radius_cm=s['p_peak_radius_cm'], hydrostatic_dPa=s['hydrostatic_dPa'],
                 p_center_over_hydrostatic=s['p_center_over_hydrostatic'],

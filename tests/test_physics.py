@@ -70,6 +70,74 @@ class TestIncline(unittest.TestCase):
             self.assertEqual(O.interactions[sc['floor'], sc['sphere']].phys.status, 1 if rolls else 2)
 
 
+class TestCoulombIsotropy(unittest.TestCase):
+    """The Coulomb cone is a cone, not a pyramid: no direction of the tangent plane is favoured.
+    The pile's slope rests on it (a pyramid would make the angle of repose depend on azimuth)."""
+    theta = math.radians(30)
+
+    def tilt(self, phi_deg, theta=None):
+        """Gravity g tilted by theta (default 30°) towards azimuth phi: (sinθ cosφ, sinθ sinφ, -cosθ)·g."""
+        th, ph = theta if theta is not None else self.theta, math.radians(phi_deg)
+        return Vector3(9.81 * math.sin(th) * math.cos(ph), 9.81 * math.sin(th) * math.sin(ph), -9.81 * math.cos(th))
+
+    def test_sphere_threshold_in_every_direction(self):
+        """A sphere on a plane tilted towards x, y, the diagonal and 30°: just above μ_c = (2/7)
+        tanθ it rolls (v = (5/7) g sinθ t), just below it slips (v = g(sinθ − μ cosθ) t), along
+        the tilt direction only (the other horizontal component stays 0), to round-off."""
+        muc = 2 / 7 * math.tan(self.theta)
+        for phi in (0.0, 90.0, 45.0, 30.0):
+            for mu, rolls in ((muc * (1 + 1e-6), True), (muc * (1 - 1e-6), False)):
+                sc = scenes.sphere_on_plane(self.theta, mu)
+                yadecd.integrator().gravity = self.tilt(phi)
+                run(200)
+                s = O.bodies[sc['sphere']].state
+                a = 5 / 7 * 9.81 * math.sin(self.theta) if rolls else 9.81 * (math.sin(self.theta) - mu * math.cos(self.theta))
+                u = (math.cos(math.radians(phi)), math.sin(math.radians(phi)))
+                along = s.vel[0] * u[0] + s.vel[1] * u[1]
+                across = -s.vel[0] * u[1] + s.vel[1] * u[0]
+                msg = 'phi=%g mu=%.9f' % (phi, mu)
+                self.assertAlmostEqual(along / (a * O.time), 1, delta=1e-11, msg=msg)
+                self.assertLess(abs(across), 1e-12 * abs(along), msg)
+                self.assertEqual(O.interactions[sc['floor'], sc['sphere']].phys.status, 1 if rolls else 2, msg)
+
+    def block_displacements(self, phi_deg, theta, steps=400):
+        """Tetrahedral block of 4 grains (μ = 0.3) rotated by phi about z, gravity tilted by
+        theta towards phi; displacements after ``steps`` steps rotated back by -phi."""
+        sc = scenes.tetrahedron(mu=0.3, tolerance=1e-13, maxIter=100000)
+        c, s = math.cos(math.radians(phi_deg)), math.sin(math.radians(phi_deg))
+        ids = sc['base'] + [sc['top']]
+        start = {}
+        for i in ids:
+            p = O.bodies[i].state.pos
+            O.bodies[i].state.pos = Vector3(c * p[0] - s * p[1], s * p[0] + c * p[1], p[2])
+            start[i] = Vector3(O.bodies[i].state.pos)
+        yadecd.integrator().gravity = self.tilt(phi_deg, theta)
+        run(steps)
+        out = []
+        for i in ids:
+            d = O.bodies[i].state.pos - start[i]
+            out.append((c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]))
+        return out
+
+    def test_block_same_motion_in_every_direction(self):
+        """The block on planes tilted by 12° and 25° (friction angle 16.7°) towards x, y, the
+        diagonal and 30°: the same motion seen from the tilt direction, grain by grain, to
+        1e-9 of the largest displacement; at 12° it holds (displacements below 1e-9 m), at 25°
+        it moves."""
+        for theta_deg in (12.0, 25.0):
+            ref = self.block_displacements(0.0, math.radians(theta_deg))
+            scale = max(max(abs(x) for x in d) for d in ref)
+            if theta_deg < 16:
+                self.assertLess(scale, 1e-9, 'the block holds at %g°' % theta_deg)
+            else:
+                self.assertGreater(scale, 1e-3, 'the block moves at %g°' % theta_deg)
+            for phi in (90.0, 45.0, 30.0):
+                got = self.block_displacements(phi, math.radians(theta_deg))
+                for g, r in zip(got, ref):
+                    for a, b in zip(g, r):
+                        self.assertLess(abs(a - b), 1e-9 * max(scale, 1e-6), 'theta %g phi %g' % (theta_deg, phi))
+
+
 class TestCurvedWall(unittest.TestCase):
     """Moreau §II: a point-like particle on the outside of a fixed frictionless sphere of radius R,
     starting at the top with speed v0. While in contact |x| = R + r (it never crosses the wall);

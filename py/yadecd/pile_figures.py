@@ -549,14 +549,26 @@ def analyse(source, out_dir, epoch=None, fossil=None, half_thickness=0.01, ring_
     figures = [fig_profile(m['prof'], out('fig0_profile.png')),
                fig_speed(snap, out('fig1_speed.png'), levels=levels),
                fig_slices(panel_snaps, fossils[0], out('fig2_slices.png'), half_thickness),
-               fig_reciprocal(m['recip'], out('fig3_reciprocal_cuts.png')),
+               fig_reciprocal(m['recip'], out('fig3_reciprocal_cuts.png')) if m['recip']['n_pairs'] else None,
                fig_cylindrical(snap, m['cyl'], fossils, out('fig4_cylindrical_cuts.png'), half_thickness,
                                law=m['law']),
                fig_ground_pressure(m['gp'], out('fig5_ground_pressure.png'), dip=m['dip']),
                fig_orientation(m['hist'], out('fig6_contact_orientations.png')),
                fig_force_chains(snap, out('fig7_force_chains.png'), half_thickness)]
+    skipped = {}
+    if not m['recip']['n_pairs']:
+        skipped['fig3_reciprocal_cuts'] = ('no pair of bands fits inside the pile: bands %.2g cm long need a pile about '
+                                           '%.1f cm thick (%d grain diameters); none written' %
+                                           (m['settings']['band_length_m'] * CM,
+                                            (m['settings']['band_length_m'] + 2 * m['settings']['band_clearance_m']) * CM,
+                                            round((m['settings']['band_length_m'] + 2 * m['settings']['band_clearance_m'])
+                                                  / m['prof']['d'])))
+        stale = out('fig3_reciprocal_cuts.png')
+        if os.path.exists(stale):
+            os.remove(stale)
     summary = _summary(snap, m, levels, fossils, [entries[k][0] for k in panels],
-                       [os.path.basename(f) for f in figures])
+                       [os.path.basename(f) for f in figures if f])
+    summary['figures_skipped'] = skipped
     summary['settings'] = dict(m['settings'], half_thickness_m=half_thickness)
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
         summary['run_parameters'] = pa.run_parameters(source)
