@@ -479,9 +479,10 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
     exposed grain at least 2 d high). On a perfect cone both read the cone's angle; a rounded
     cap lowers the chord angle only.
 
-    A pile whose window would span less than ``FLANK_MIN_SPAN_D`` = 2 d of height (H < 5 d,
-    about 2 cm with the paper's grains), or holds too few points, has no straight flank: the
-    slope is nan and ``slope_note`` says why.
+    A pile whose window would span less than ``FLANK_MIN_SPAN_D`` = 2 d of height (the surface
+    at 3-4 d from the axis, or the apex minus 1 d, less than 4 d above the floor: about 1.5 cm
+    with the paper's grains, so piles below about 2 cm), or holds too few points, has no straight
+    flank: the slope is nan and ``slope_note`` says why.
 
     :returns: dict ``slope_deg``, ``slope_err_deg``, ``slope_sector_deg`` (per-sector fits),
         ``slope_note`` ('' when measured), ``fit_line`` (a, b) of h = a + b·r, ``fit_r_range``
@@ -512,9 +513,14 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
            'n_surface': int(vis.sum()), 'surface_r': r, 'surface_h': h, 'in_window': window,
            'weight': np.zeros(len(r)), 'H': H, 'd': d, 'base_radius': nan, 'H_cone': nan}
     out.update(_chord(r, h, sector, n_sectors, H, d))
-    if h_hi - h_lo < FLANK_MIN_SPAN_D * d:
-        out['slope_note'] = ('no straight flank: the pile is %.1f grain diameters high, a flank needs %.1f'
-                             % (H / d, FLANK_MIN_THICKNESS_D + FLANK_CAP_DROP_D + FLANK_MIN_SPAN_D))
+    # the height the flank can start from: the surface where the window begins (r = 3 d to 4 d),
+    # not the apex, which grains just created on the axis can raise far above the flank
+    start = (r >= FLANK_CAP_RADIUS_D * d) & (r < (FLANK_CAP_RADIUS_D + 1) * d)
+    h_start = float(np.median(h[start])) if start.any() else float('nan')
+    if not (min(h_hi, h_start) - h_lo >= FLANK_MIN_SPAN_D * d):
+        out['slope_note'] = ('no straight flank: the surface is %.1f grain diameters high at 3 d from the axis '
+                             '(apex %.1f d), a flank needs %.1f' % (h_start / d, H / d,
+                                                                    FLANK_MIN_THICKNESS_D + FLANK_MIN_SPAN_D))
         return out
     if window.sum() < FLANK_MIN_POINTS:
         out['slope_note'] = 'no straight flank: %d surface points in the flank window' % window.sum()

@@ -38,7 +38,7 @@ pf = _sibling('pile_figures')
 ens = _sibling('ensemble')
 
 CM, DPA = 100.0, 10.0
-CACHE_VERSION = 3
+CACHE_VERSION = 4
 
 # the per-run scalars aggregated over seeds: key in the run record -> (label, unit factor, unit)
 SCALARS = {
@@ -52,8 +52,10 @@ SCALARS = {
     'dip_D': ('central dip D', 1.0, ''),
     'p_disc_over_hydrostatic': ('p(r < 2d) / hydrostatic', 1.0, ''),
     'p_ring_over_hydrostatic': ('p(2d..4d) / hydrostatic', 1.0, ''),
+    'recip_n_pairs': ('reciprocal band pairs per pile', 1.0, ''),
     'recip_rel_median': ('reciprocity |Δ|/scale, median over pairs', 1.0, ''),
     'recip_null_median': ('same, null pairing', 1.0, ''),
+    'law_n_cuts': ('cylindrical cuts with a measurable layering per pile', 1.0, ''),
     'law_median_layer_deg': ('T vs local fossil layer, median angle', 1.0, 'deg'),
     'law_median_random_deg': ('T vs random layer (null), median angle', 1.0, 'deg'),
     'law_advantage_deg': ('random - layer, mean angle', 1.0, 'deg'),
@@ -221,7 +223,7 @@ def table_markdown(stats, changes):
                                                                      stats[c]['n_runs']) for c in cols) + ' |',
              '| --- |' + ' --- |' * len(cols)]
     for key, (label, factor, unit) in SCALARS.items():
-        digits = 0 if key == 'n_contacts' else (3 if unit == '' else 2)
+        digits = 0 if key in ('n_contacts', 'recip_n_pairs', 'law_n_cuts') else (3 if unit == '' else 2)
         lines.append('| %s%s | ' % (label, ' [%s]' % unit if unit else '') +
                      ' | '.join(_fmt(stats[c][key], factor, digits) for c in cols) + ' |')
     lines.append('| pooled dip D (jackknife over piles) | ' + ' | '.join(
