@@ -465,11 +465,15 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
     near the axis and stray grains.
 
     What it measures: the exposed grains (:func:`surface_grains`) give surface points
-    (r of the centre, height of the top above the floor). The flank window keeps those where
-    the pile is at least ``FLANK_MIN_THICKNESS_D`` = 2 mean diameters d thick (no foot of single
-    grains), at least 3 d from the axis and at least 1 d below the apex (no cap): rules in
-    grain diameters, not fractions of H, so they mean the same on piles of every size. A
-    bisquare line (:func:`robust_line`) is fitted to those points; the slope is atan(-b).
+    (r of the centre, height of the top above the floor). The flank window is a range of r
+    (:func:`_flank_range`): from 3 d from the axis, where the surface is at least 1 d under the
+    apex (no cap), to where the pile becomes thinner than ``FLANK_MIN_THICKNESS_D`` = 2 mean
+    diameters d (no foot of single grains): rules in grain diameters, not fractions of H, so they
+    mean the same on piles of every size. In that range the highest exposed grain of every cell
+    of equal area (:func:`_envelope_points`, about 2 d² each) is a surface point, and a bisquare
+    line (:func:`robust_line`) is fitted to them; the slope is atan(-b). (All exposed grains
+    would include grains seen deep in holes, whose depth shrinks where the pile thins; the
+    highest grain of equal-area cells has the same statistics everywhere.)
     Its uncertainty is the bootstrap standard error over ``n_sectors`` azimuthal sectors
     (sectors resampled with replacement, ``n_boot`` times, fixed ``seed``): it measures how much
     the answer depends on which part of the pile one looks at.
@@ -479,10 +483,10 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
     exposed grain at least 2 d high). On a perfect cone both read the cone's angle; a rounded
     cap lowers the chord angle only.
 
-    A pile whose window would span less than ``FLANK_MIN_SPAN_D`` = 2 d of height (the surface
-    at 3-4 d from the axis, or the apex minus 1 d, less than 4 d above the floor: about 1.5 cm
-    with the paper's grains, so piles below about 2 cm), or holds too few points, has no straight
-    flank: the slope is nan and ``slope_note`` says why.
+    A pile whose flank would span less than ``FLANK_MIN_SPAN_D`` = 2 d of height (the surface
+    where the window starts less than 4 d above the floor: piles below about 2 cm with the
+    paper's grains), or holds too few points, has no straight flank: the slope is nan and
+    ``slope_note`` says why.
 
     :returns: dict ``slope_deg``, ``slope_err_deg``, ``slope_sector_deg`` (per-sector fits),
         ``slope_note`` ('' when measured), ``fit_line`` (a, b) of h = a + b·r, ``fit_r_range``
@@ -505,22 +509,19 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
     h = pos[vis, 2] + rad[vis] - z_floor
     phi = np.mod(np.arctan2(pos[vis, 1], pos[vis, 0]), 2 * math.pi)
     sector = np.minimum((phi / (2 * math.pi / n_sectors)).astype(int), n_sectors - 1)
-    h_lo, h_hi = FLANK_MIN_THICKNESS_D * d, H - FLANK_CAP_DROP_D * d
-    window = (h >= h_lo) & (h <= h_hi) & (r >= FLANK_CAP_RADIUS_D * d)
+    r_lo, r_hi, h_start = _flank_range(r, h, phi, d, H, n_sectors)
+    window = _envelope_points(r, phi, h, d) & (r >= r_lo) & (r < r_hi)
     nan = float('nan')
     out = {'slope_deg': nan, 'slope_err_deg': nan, 'slope_sector_deg': np.zeros(0), 'slope_note': '',
            'fit_line': (nan, nan), 'fit_r_range': (nan, nan), 'n_fit_points': int(window.sum()),
            'n_surface': int(vis.sum()), 'surface_r': r, 'surface_h': h, 'in_window': window,
-           'weight': np.zeros(len(r)), 'H': H, 'd': d, 'base_radius': nan, 'H_cone': nan}
+           'weight': np.zeros(len(r)), 'H': H, 'd': d, 'base_radius': nan, 'H_cone': nan,
+           'window_r': (r_lo, r_hi)}
     out.update(_chord(r, h, sector, n_sectors, H, d))
-    # the height the flank can start from: the surface where the window begins (r = 3 d to 4 d),
-    # not the apex, which grains just created on the axis can raise far above the flank
-    start = (r >= FLANK_CAP_RADIUS_D * d) & (r < (FLANK_CAP_RADIUS_D + 1) * d)
-    h_start = float(np.median(h[start])) if start.any() else float('nan')
-    if not (min(h_hi, h_start) - h_lo >= FLANK_MIN_SPAN_D * d):
-        out['slope_note'] = ('no straight flank: the surface is %.1f grain diameters high at 3 d from the axis '
-                             '(apex %.1f d), a flank needs %.1f' % (h_start / d, H / d,
-                                                                    FLANK_MIN_THICKNESS_D + FLANK_MIN_SPAN_D))
+    if not (h_start - FLANK_MIN_THICKNESS_D * d >= FLANK_MIN_SPAN_D * d * (1 - 1e-9)):   # round-off slack
+        out['slope_note'] = ('no straight flank: the surface is %.1f grain diameters high where a flank could start '
+                             '(3 d from the axis, 1 d under the apex at %.1f d), a flank needs %.1f'
+                             % (h_start / d, H / d, FLANK_MIN_THICKNESS_D + FLANK_MIN_SPAN_D))
         return out
     if window.sum() < FLANK_MIN_POINTS:
         out['slope_note'] = 'no straight flank: %d surface points in the flank window' % window.sum()
@@ -556,6 +557,53 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
                fit_r_range=(float(x[used].min()), float(x[used].max())),
                base_radius=a / -b, H_cone=a)
     return out
+
+
+FLANK_CELL_ARC_D = 2.0           # envelope cells: radial width d, arc length about 2 d
+
+
+def _envelope_points(r, phi, h, d):
+    """The highest exposed grain of every cell of (nearly) equal area: radial bins of width d,
+    each cut into max(1, floor(2·pi·r_mid/(2 d))) azimuthal cells of arc length about 2 d. Every
+    cell holds about as many surface grains as any other, so the highest one sits at the same
+    depth under the envelope everywhere (cells of equal angle hold more grains far from the axis,
+    whose highest grain then reads higher: a slope bias). Returns a bool mask."""
+    sel = np.zeros(len(r), dtype=bool)
+    if len(r) == 0:
+        return sel
+    j = (r / d).astype(np.int64)
+    n_az = np.maximum(1, np.floor(2 * math.pi * (j + 0.5) / FLANK_CELL_ARC_D)).astype(np.int64)
+    k = np.minimum((phi / (2 * math.pi) * n_az).astype(np.int64), n_az - 1)
+    _, idx = _highest_per_cell(j * (int(n_az.max()) + 1) + k, h)
+    sel[idx] = True
+    return sel
+
+
+def _flank_range(r, h, phi, d, H, n_sectors):
+    """Radial range [r_lo, r_hi) of the flank and the surface height at its start [m].
+
+    The envelope E(r) is the median over sectors of the highest exposed top per (sector, radial
+    bin of width d). r_lo is the first bin at least 3 d from the axis where E is at least 1 d
+    under the apex H (no cap); r_hi the first bin beyond it where E falls below 2 d (the pile is
+    thinner than two grains: the foot). The window is chosen on r only, never on the height the
+    line is fitted to (a cut on h would keep only the upper part of the scatter near the toe and
+    flatten the line)."""
+    nan = float('nan')
+    if len(r) == 0:
+        return nan, nan, nan
+    n_bins = int(r.max() // d) + 1
+    _, e_sb = _sector_profiles(r, phi, h, d, n_bins, n_sectors)
+    env = _column_median(e_sb)
+    centre = (np.arange(n_bins) + 0.5) * d
+    with np.errstate(invalid='ignore'):
+        ok_lo = (centre >= FLANK_CAP_RADIUS_D * d) & (env <= H - FLANK_CAP_DROP_D * d)
+    if not ok_lo.any():
+        return nan, nan, nan
+    k_lo = int(np.flatnonzero(ok_lo)[0])
+    with np.errstate(invalid='ignore'):
+        thin = np.flatnonzero((np.arange(n_bins) > k_lo) & ~(env >= FLANK_MIN_THICKNESS_D * d))
+    k_hi = int(thin[0]) if len(thin) else n_bins
+    return k_lo * d, k_hi * d, float(env[k_lo])
 
 
 def _chord(r, h, sector, n_sectors, H, d):
