@@ -261,6 +261,17 @@ def _series(stats, key, epoch, factor=1.0):
     return tuple(np.array(x)[order] for x in (ns, m, lo, hi))
 
 
+def _size_axis(ax, records):
+    """Log x axis ticked at the ensemble's grain counts."""
+    sizes = sorted({r['n_grains'] for r in records})
+    ax.set_xscale('log')
+    ax.set_xticks(sizes)
+    ax.set_xticklabels([str(n) for n in sizes])
+    ax.minorticks_off()
+    if sizes:
+        ax.set_xlim(sizes[0] / 1.4, sizes[-1] * 1.4)
+
+
 def fig_slope(stats, records, path):
     """Slope and chord angle against pile size, end of feed and relaxed, with 95 % intervals and
     every seed's value; the paper's 26°."""
@@ -284,7 +295,7 @@ def fig_slope(stats, records, path):
         ax.text(0.02, 0.03, 'no straight flank (too small) at %s grains: chord angle only' % ', '.join(map(str, unmeasured)),
                 transform=ax.transAxes, fontsize=7)
     ax.axhline(26, color='k', ls='--', lw=0.8, label='paper (14 000 grains)')
-    ax.set_xscale('log')
+    _size_axis(ax, records)
     ax.set_xlabel('grains')
     ax.set_ylabel('angle [deg]')
     ax.set_title('free-surface slope against pile size (dots: single seeds)', fontsize=9)
@@ -311,7 +322,7 @@ def fig_dip(stats, records, path):
             ax.errorbar(xs, ds, yerr=[ds - los, his - ds], fmt='o', color=colour, capsize=3,
                         label='%s: pooled over seeds, 95%% interval' % epoch)
     ax.axhline(0, color='k', lw=0.8)
-    ax.set_xscale('log')
+    _size_axis(ax, records)
     ax.set_xlabel('grains')
     ax.set_ylabel('D = 1 - p(r < 2d) / p(2d ≤ r < 4d)')
     ax.set_title('central dip of the floor pressure (dots: single piles; D > 0 is a dip)', fontsize=9)
