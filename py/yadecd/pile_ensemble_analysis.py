@@ -192,6 +192,12 @@ def aggregate(records):
         g['fossil_law_pooled'] = {'layer': _pooled([r['law_angle_layer'] for r in recs]),
                                   'random': _pooled([r['law_angle_random'] for r in recs]),
                                   'cuts_per_pile': pa.mean_interval([r['law_n_cuts'] for r in recs])}
+        for zone, inside in (('centre', lambda x: x < 0.5), ('flank', lambda x: x >= 0.5)):
+            pick = lambda key: [[a for a, x in zip(r[key], r['law_r_over_R']) if x is not None and inside(x)] for r in recs]
+            lay, rnd = pick('law_angle_layer'), pick('law_angle_random')
+            per_pile = [np.mean(np.array(rr, float) - np.array(ll, float)) if ll else float('nan') for ll, rr in zip(lay, rnd)]
+            g['fossil_law_pooled'][zone] = {'layer': _pooled(lay), 'random': _pooled(rnd),
+                                            'advantage_over_piles': pa.mean_interval(per_pile)}
         out['%d_%s' % (n, epoch)] = g
     changes = {}
     for n in sorted({k[0] for k in groups}):
@@ -216,6 +222,10 @@ def _fmt(stat, factor=1.0, digits=2):
                                                               lo * factor, hi * factor)
 
 
+def _q(x, digits=3):
+    return 'n/a' if x is None or not np.isfinite(x) else ('%.' + str(digits) + 'f') % x
+
+
 def table_markdown(stats, changes):
     """The ensemble table: one column per (size, epoch), mean ± spread over seeds [95 % interval]."""
     cols = sorted(stats, key=lambda k: (int(k.split('_')[0]), k.split('_')[1] != 'feed'))
@@ -230,6 +240,18 @@ def table_markdown(stats, changes):
         '%.3f [%.3f, %.3f], confidence of a dip %.0f%%' % ((stats[c]['dip_pooled']['D'],) + tuple(stats[c]['dip_pooled']['ci95'])
                                                            + (100 * stats[c]['dip_pooled']['confidence_positive'],))
         if np.isfinite(stats[c]['dip_pooled']['se']) else 'n/a' for c in cols) + ' |')
+    for c in cols:
+        law, rec = stats[c]['fossil_law_pooled'], stats[c]['reciprocity_pooled']
+        lines.append('')
+        lines.append('%s grains, %s: reciprocity pooled over pairs: median %s (quartiles %s-%s, %d pairs), null pairing %s; '
+                     % (c.split('_')[0], c.split('_')[1], _q(rec['true']['median']), _q(rec['true']['q25']),
+                        _q(rec['true']['q75']), rec['true']['n'], _q(rec['null']['median'])) +
+                     'fossil-layer law, angle to the local layer / to a random layer (median over cuts), random - layer '
+                     '(mean over piles, 95 %% interval): centre r < R/2 %s° / %s°, %s; flank %s° / %s°, %s'
+                     % (_q(law['centre']['layer']['median'], 1), _q(law['centre']['random']['median'], 1),
+                        _fmt(law['centre']['advantage_over_piles'], 1.0, 1),
+                        _q(law['flank']['layer']['median'], 1), _q(law['flank']['random']['median'], 1),
+                        _fmt(law['flank']['advantage_over_piles'], 1.0, 1)))
     lines.append('')
     if changes:
         lines.append('Change on relaxation (relaxed - end of feed, same seed): mean ± spread [95 % interval]')
