@@ -328,6 +328,17 @@ def _cone_volume(r_prof, h_prof, base_radius):
     return float(((f[1:] + f[:-1]) * np.diff(r)).sum() / 2)
 
 
+def _pile_and_floor(snap, mask, z_floor, caller):
+    """The normalised snapshot, the pile mask (default :func:`pile_mask`) and the floor height
+    (default :func:`floor_level`); ValueError naming ``caller`` when no grain is in the pile."""
+    snap = _normalise(snap)
+    if mask is None:
+        mask = pile_mask(snap)
+    if not mask.any():
+        raise ValueError('%s: no pile grain' % caller)
+    return snap, mask, (floor_level(snap) if z_floor is None else float(z_floor))
+
+
 def horizontal_pairs(xy, cutoff):
     """All ordered pairs (i, j), i != j, of points ``xy`` (n, 2) [m] closer than ``cutoff`` [m]
     horizontally, found through a square grid of cell ``cutoff`` (no O(n²) step). Returns two
@@ -495,12 +506,7 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
         ``R2`` [m], ``chord_angle_deg``, ``base_radius`` [m] (where the fitted line meets the
         floor), ``H_cone`` [m] (the line at r = 0).
     """
-    snap = _normalise(snap)
-    if mask is None:
-        mask = pile_mask(snap)
-    if not mask.any():
-        raise ValueError('flank_slope: no pile grain')
-    z_floor = floor_level(snap) if z_floor is None else float(z_floor)
+    snap, mask, z_floor = _pile_and_floor(snap, mask, z_floor, 'flank_slope')
     d = mean_diameter(snap)
     pos, rad = snap['pos'], snap['radius']
     H = float((pos[mask, 2] + rad[mask]).max() - z_floor)
@@ -638,12 +644,7 @@ def profile_and_slope(snap, bin_width=None, n_sectors=8, z_floor=None, mask=None
         up to it, ``pile_mass`` [kg] of the pile grains inside it, ``rho_bulk`` [kg/m³] =
         pile_mass/volume (an estimate: the profile follows grain tops), ``n_grains``.
     """
-    snap = _normalise(snap)
-    if mask is None:
-        mask = pile_mask(snap)
-    if not mask.any():
-        raise ValueError('profile_and_slope: no pile grain')
-    z_floor = floor_level(snap) if z_floor is None else float(z_floor)
+    snap, mask, z_floor = _pile_and_floor(snap, mask, z_floor, 'profile_and_slope')
     result = flank_slope(snap, mask=mask, z_floor=z_floor, n_sectors=n_sectors, n_boot=n_boot)
     w = float(bin_width) if bin_width is not None else mean_diameter(snap)
     pos, rad = snap['pos'][mask], snap['radius'][mask]
