@@ -79,6 +79,8 @@ def main(argv=None):
     rc = s['reciprocity']
     print('reciprocity: %d pairs, relative difference median %s (null pairing %s)'
           % (rc['n_pairs'], fmt(rc['rel_median'], '%.3f'), fmt(rc['rel_null_median'], '%.3f')))
+    for name, why in s.get('figures_skipped', {}).items():
+        print('%s: %s' % (name, why))
     print('written: %s' % os.path.join(out, 'summary.json'))
     return 0
 

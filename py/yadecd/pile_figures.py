@@ -239,17 +239,18 @@ def fig_cylindrical(snap, cyl, fossils, path, half_thickness=0.01, law=None):
     if law is not None:
         hx = fig.add_axes([0.72, 0.12, 0.26, 0.74])
         bins = np.linspace(0, 90, 19)
-        if law['n_cuts']:
+        rand = law['angle_random_layer_deg'][np.isfinite(law['angle_random_layer_deg'])]
+        if law['n_cuts'] > 1 and len(rand):
             hx.hist(law['angle_layer_deg'], bins=bins, color='tab:purple', alpha=0.7,
                     label='local fossil layer: median %.0f°' % law['median_layer_deg'])
-            hx.hist(law['angle_random_layer_deg'], bins=bins, histtype='step', color='k', lw=1.2,
+            hx.hist(rand, bins=bins, histtype='step', color='k', lw=1.2,
                     label='random layer (null): median %.0f°' % law['median_random_deg'])
             hx.legend(fontsize=6)
             hx.set_title('%d cuts; random - layer = %.1f° [%.1f, %.1f]' % ((law['n_cuts'], law['advantage_deg'])
                          + tuple(law['advantage_ci95'])), fontsize=7)
         else:
-            hx.text(0.5, 0.5, 'no cut with a measurable\nlocal layering', ha='center', va='center',
-                    transform=hx.transAxes, fontsize=8)
+            hx.text(0.5, 0.5, '%d cut(s) with a measurable\nlocal layering: no statistic' % law['n_cuts'],
+                    ha='center', va='center', transform=hx.transAxes, fontsize=8)
         hx.set_xlabel('angle between T and the layer [deg]', fontsize=8)
         hx.set_ylabel('cuts', fontsize=8)
     return _save(fig, path)
