@@ -812,17 +812,18 @@ def reciprocal_cuts(snap, pairs):
 
 def _reciprocity_null(cont, pairs):
     """The reciprocity statistic with no reason to hold: each pair's second band is replaced by
-    the second band of the pair six places further on (the next centre of the grid when each
-    centre has six pairs), so T and T' come from different places. Its spread is the scale
-    against which the true pairs' agreement is read."""
+    the second band of the pair half the list further on (rounded to a multiple of six, the
+    pairs per centre, so the orientations match), i.e. T' is measured at a distant place of the
+    pile. Its spread is the scale against which the true pairs' agreement is read."""
     k = len(pairs)
-    if k < 7:
+    shift = 6 * max(1, (k // 6) // 2)
+    if k < 7 or shift >= k:
         return np.full(k, np.nan)
     rel = np.full(k, np.nan)
     bands1 = [_band_from_contacts(cont, *seg) for seg, _ in pairs]
     bands2 = [_band_from_contacts(cont, *seg2) for _, seg2 in pairs]
     for i in range(k):
-        b1, b2 = bands1[i], bands2[(i + 6) % k]
+        b1, b2 = bands1[i], bands2[(i + shift) % k]
         a, b = float(b1.n @ b2.T), float(b2.n @ b1.T)
         scale = math.sqrt(np.linalg.norm(b1.T) * np.linalg.norm(b2.T))
         if scale > 0:

@@ -502,7 +502,12 @@ def measure(snap, ring_width=None, n_sectors=8, band_length=None, band_height=No
     radii, heights = _pile_grids(prof, band_height * 2 / 3, band_height / 2)
     cyl = pa.cylindrical_cut_directions(snap, radii, heights, band_height)
     cyl['inside'] = cyl['z'] - prof['z_floor'] + band_height / 2 < _surface_height(prof, cyl['r'])
-    law = pa.fossil_law(snap, cyl, layer_radius, prof['slope_deg'])
+    # the law is tested on a grid twice as fine (cuts one diameter apart, overlapping): more cuts
+    # per pile; the ensemble's interval is over piles, which are independent
+    radii, heights = _pile_grids(prof, band_height / 3, band_height / 2)
+    fine = pa.cylindrical_cut_directions(snap, radii, heights, band_height)
+    fine['inside'] = fine['z'] - prof['z_floor'] + band_height / 2 < _surface_height(prof, fine['r'])
+    law = pa.fossil_law(snap, fine, layer_radius, prof['slope_deg'])
     hist = pa.contact_orientation_histogram(snap)
     return {'prof': prof, 'gp': gp, 'dip': dip, 'recip': recip, 'cyl': cyl, 'law': law, 'hist': hist,
             'settings': {'ring_width_m': ring_width, 'n_sectors': n_sectors, 'band_length_m': band_length,
