@@ -3,7 +3,8 @@ largest grain of the protocol (yadecd.rolloff).
 
     scripts/yade -n -x scripts/paving_rolloff.py [--per-size 20] [--out docs/data/paving_rolloff.json]
 
-Prints, per diameter, the median release tilt and its spread (quartiles), and writes them as JSON.
+Prints, per diameter, the median release tilt and its quartiles (grains still held at the largest
+tilt, 70°, count as released above it), and writes them as JSON.
 """
 import argparse
 import json
@@ -22,16 +23,24 @@ a = ap.parse_args(sys.argv[1:])
 diameters = [0.0025, 0.00375, 0.005]
 res = rolloff.release_angles(diameters, per_size=a.per_size, rate=a.rate, seed=a.seed)
 table = {}
+def quantile(v, q):
+    """Quantile with the grains still held counted as released above the largest tilt (inf)."""
+    x = float(np.quantile(v, q))
+    return None if not np.isfinite(x) else x
+
+
 for d, angles in res.items():
     held = np.isnan(angles)
-    v = angles[~held]
+    v = np.where(held, np.inf, angles)
     table['%.5f' % d] = {'diameter_cm': d * 100, 'n': int(len(angles)), 'held_at_max_tilt': int(held.sum()),
-                         'median_deg': float(np.median(v)) if len(v) else None,
-                         'q25_deg': float(np.quantile(v, 0.25)) if len(v) else None,
-                         'q75_deg': float(np.quantile(v, 0.75)) if len(v) else None,
-                         'min_deg': float(v.min()) if len(v) else None, 'angles_deg': angles.tolist()}
-    print('d = %.3f cm: release tilt median %.1f deg (quartiles %.1f-%.1f, min %.1f), %d of %d held at the end'
-          % (d * 100, np.median(v), np.quantile(v, 0.25), np.quantile(v, 0.75), v.min(), held.sum(), len(angles)))
+                         'median_deg': quantile(v, 0.5), 'q25_deg': quantile(v, 0.25), 'q75_deg': quantile(v, 0.75),
+                         'released_below_26deg': int((v < 26).sum()), 'min_deg': float(v.min()),
+                         'angles_deg': angles.tolist()}
+    show = lambda x: '> %g' % rolloff_max if x is None else '%.1f' % x
+    rolloff_max = 70.0
+    print('d = %.3f cm: release tilt median %s deg (quartiles %s-%s), %d of %d released below 26 deg, %d held at %g deg'
+          % (d * 100, show(quantile(v, 0.5)), show(quantile(v, 0.25)), show(quantile(v, 0.75)),
+             (v < 26).sum(), len(v), held.sum(), rolloff_max))
 with open(a.out, 'w') as f:
     json.dump({'rate_deg_s': a.rate, 'seed': a.seed, 'per_size': a.per_size, 'sizes': table}, f, indent=1)
 print('written: %s' % a.out)
