@@ -58,6 +58,7 @@ SCALARS = {
     'law_n_cuts': ('cylindrical cuts with a measurable layering per pile', 1.0, ''),
     'law_median_layer_deg': ('T vs local fossil layer, median angle', 1.0, 'deg'),
     'law_median_random_deg': ('T vs random layer (null), median angle', 1.0, 'deg'),
+    'law_median_surface_deg': ('T vs free-surface direction (null), median angle', 1.0, 'deg'),
     'law_advantage_deg': ('random - layer, mean angle', 1.0, 'deg'),
     'vmax_m_s': ('fastest grain', CM, 'cm/s'),
     'n_contacts': ('contacts', 1.0, ''),
