@@ -298,7 +298,7 @@ def _size_axis(ax, records):
 def fig_slope(stats, records, path):
     """Slope and chord angle against pile size, end of feed and relaxed, with 95 % intervals and
     every seed's value; the paper's 26°."""
-    fig = pf._figure(7, 4.2)
+    fig = pf._figure(9, 4.2)
     ax = fig.add_subplot(1, 1, 1)
     styles = {('slope_deg', 'feed'): ('tab:blue', 'o', -0.03), ('slope_deg', 'relaxed'): ('tab:orange', 's', 0.03),
               ('chord_angle_deg', 'feed'): ('tab:blue', '^', -0.015), ('chord_angle_deg', 'relaxed'): ('tab:orange', 'v', 0.015)}
@@ -322,7 +322,7 @@ def fig_slope(stats, records, path):
     ax.set_xlabel('grains')
     ax.set_ylabel('angle [deg]')
     ax.set_title('free-surface slope against pile size (dots: single seeds)', fontsize=9)
-    ax.legend(fontsize=6, loc='lower right')
+    ax.legend(fontsize=6, loc='upper left', bbox_to_anchor=(1.01, 1.0))
     return pf._save(fig, path)
 
 
