@@ -228,3 +228,40 @@ class TestPileMethods(unittest.TestCase):
 
 if __name__ == '__main__':
     unittest.main()
+
+
+class TestEnsembleDriver(unittest.TestCase):
+    """scripts/pile_ensemble.py drives real YADE runs: two tiny piles, one of which has a damaged
+    checkpoint, run to the end: the healthy one finishes, the damaged one is reported as failed
+    with its error, the driver exits 1, and `analyse` lists the failure and uses the other."""
+
+    def test_one_failure_does_not_stop_the_others(self):
+        import subprocess
+        here = os.path.dirname(os.path.abspath(__file__))
+        script = os.path.join(here, '..', 'scripts', 'pile_ensemble.py')
+        with tempfile.TemporaryDirectory() as d:
+            root = os.path.join(d, 'ens')
+            bad = os.path.join(root, 'n6_s2')
+            os.makedirs(bad)
+            with open(os.path.join(bad, 'checkpoint.json'), 'w') as f:
+                f.write('{"births": {"1": ')         # a checkpoint cut short by a kill
+            with open(os.path.join(bad, 'run.json'), 'w') as f:
+                json.dump({'n_grains': 6, 'seed': 2}, f)
+            proc = subprocess.run(['/usr/bin/python3', script, 'run', root, '--sizes', '6', '--seeds', '1-2',
+                                   '--relax', '0.05', '--jobs', '2'], capture_output=True, text=True, timeout=600)
+            self.assertEqual(proc.returncode, 1, proc.stdout + proc.stderr)
+            self.assertRegex(proc.stdout, r'n6_s1\s+done')
+            self.assertRegex(proc.stdout, r'n6_s2\s+failed')
+            with open(os.path.join(root, 'ensemble.json')) as f:
+                status = json.load(f)['runs']
+            self.assertEqual(status['n6_s1']['state'], 'done')
+            self.assertEqual(status['n6_s2']['state'], 'failed')
+            self.assertNotEqual(status['n6_s2']['returncode'], 0)
+            self.assertTrue(status['n6_s2']['error'])
+            proc = subprocess.run(['/usr/bin/python3', script, 'analyse', root], capture_output=True, text=True,
+                                  timeout=600)
+            self.assertEqual(proc.returncode, 0, proc.stderr)
+            with open(os.path.join(root, 'analysis', 'ensemble_summary.json')) as f:
+                summary = json.load(f)
+            self.assertEqual(summary['n_runs_analysed'], 1)
+            self.assertIn('n6_s2', summary['failed_runs'])
