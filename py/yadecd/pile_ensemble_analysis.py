@@ -353,6 +353,33 @@ def fig_dip(stats, records, path):
     return pf._save(fig, path)
 
 
+def fig_pressure(records, path, epoch='relaxed'):
+    """Floor pressure over the hydrostatic ρ_bulk·g·H per ring (rings 2 d wide, r in mean
+    diameters), mean over seeds with 95 % intervals, one curve per pile size."""
+    fig = pf._figure(7, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    sizes = sorted({r['n_grains'] for r in records if r['epoch'] == epoch})
+    for k, n in enumerate(sizes):
+        recs = [r for r in records if r['n_grains'] == n and r['epoch'] == epoch]
+        m = min(len(r['rings_p_over_hydrostatic']) for r in recs)
+        x = np.array(recs[0]['rings_r_over_d'][:m])
+        rows = np.array([[_num(v) for v in r['rings_p_over_hydrostatic'][:m]] for r in recs])
+        st = [pa.mean_interval(rows[:, j]) for j in range(m)]
+        mean = np.array([s_['mean'] for s_ in st])
+        lo = np.array([s_['ci95'][0] for s_ in st])
+        hi = np.array([s_['ci95'][1] for s_ in st])
+        shift = (k - (len(sizes) - 1) / 2) * 0.12
+        ax.errorbar(x + shift, mean, yerr=[mean - lo, hi - mean], fmt='o-', ms=3, capsize=2,
+                    label='%d grains (%d piles)' % (n, len(recs)))
+    ax.axhline(1, color='k', ls=':', lw=0.8, label='hydrostatic ρ_bulk g H')
+    ax.axvspan(0, 2, color='0.9', zorder=0)
+    ax.set_xlabel('distance to the axis r / d (ring centres; grey: the central disc of D)')
+    ax.set_ylabel('floor pressure / (ρ_bulk g H)')
+    ax.set_title('floor pressure per ring, %s piles: mean over seeds, 95 %% intervals' % epoch, fontsize=9)
+    ax.legend(fontsize=7)
+    return pf._save(fig, path)
+
+
 def fig_cuts(records, path):
     """Pooled over the largest size's relaxed piles: reciprocity relative differences (true
     pairs against the null pairing) and the fossil-layer law angles (local layer against a
@@ -422,5 +449,6 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print):
     fig_slope(stats, records, os.path.join(out_dir, 'ensemble_slope.png'))
     fig_dip(stats, records, os.path.join(out_dir, 'ensemble_dip.png'))
     fig_cuts(records, os.path.join(out_dir, 'ensemble_cuts.png'))
+    fig_pressure(records, os.path.join(out_dir, 'ensemble_pressure.png'))
     log(table)
     return summary
