@@ -374,7 +374,7 @@ def horizontal_pairs(xy, cutoff):
 def surface_grains(snap, mask=None):
     """Grains of the free surface: those (among ``mask``, default :func:`pile_mask`) whose top
     point (x, y, z + radius) sees the sky, i.e. the vertical ray going up from it meets no other
-    grain of the snapshot. A sphere j hides grain i when the horizontal distance ρ between their
+    grain of the pile (``mask``) or of the paving (grains in flight are not obstacles). A sphere j hides grain i when the horizontal distance ρ between their
     centres is below r_j and its upper surface there, z_j + sqrt(r_j² - ρ²), is above i's top.
     Unlike the highest grain of a cell, the exposed grains have the same statistics everywhere
     on a uniform surface (their number does not grow with a cell's area), so fitting them is
@@ -388,7 +388,8 @@ def surface_grains(snap, mask=None):
         return visible
     i, j = horizontal_pairs(pos[:, :2], float(rad.max()))
     rho2 = ((pos[i, :2] - pos[j, :2]) ** 2).sum(axis=1)
-    over = rho2 < rad[j] ** 2
+    occluder = np.asarray(mask, dtype=bool) | snap['fixed']      # a grain in flight hides nothing
+    over = (rho2 < rad[j] ** 2) & occluder[j]
     i, j, rho2 = i[over], j[over], rho2[over]
     hidden = pos[j, 2] + np.sqrt(rad[j] ** 2 - rho2) > pos[i, 2] + rad[i]
     visible[i[hidden]] = False

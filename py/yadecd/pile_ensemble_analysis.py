@@ -38,7 +38,7 @@ pf = _sibling('pile_figures')
 ens = _sibling('ensemble')
 
 CM, DPA = 100.0, 10.0
-CACHE_VERSION = 6
+CACHE_VERSION = 7
 
 # the per-run scalars aggregated over seeds: key in the run record -> (label, unit factor, unit)
 SCALARS = {
