@@ -297,3 +297,38 @@ class TestEnsembleDriver(unittest.TestCase):
 
 if __name__ == '__main__':
     unittest.main()
+
+
+class TestEnsembleStatistics(unittest.TestCase):
+    """pile_ensemble_analysis.aggregate on constructed per-run records with known values."""
+
+    @staticmethod
+    def record(n, seed, epoch, slope, p_disc, p_ring):
+        rec = {'n_grains': n, 'seed': seed, 'epoch': epoch, 'run': 'n%d_s%d' % (n, seed), 'slope_deg': slope,
+               'p_disc_Pa': p_disc, 'p_ring_Pa': p_ring, 'recip_rel': [0.1, 0.2], 'recip_null': [0.5],
+               'recip_n_pairs': 2, 'law_angle_layer': [3.0], 'law_angle_random': [9.0], 'law_r_over_R': [0.7],
+               'law_n_cuts': 1}
+        return rec
+
+    def test_means_intervals_and_paired_changes(self):
+        """Slopes 27, 28, 29 at the end of the feed and 26, 26.5, 28 relaxed (seed by seed): mean
+        28 with the t interval 28 ± 4.303·1/sqrt(3); paired change -1.1667 from the differences
+        -1, -1.5, -1 (not from the difference of the means of unpaired seeds: seed 4, relaxed only,
+        is left out of the pairing). Pooled dip 1 - (1+2+3)/(2+4+6) = 0.5 with a zero jackknife
+        error (every pile has the same ratio)."""
+        pea = _load('_yadecd_pile_ensemble_analysis', 'pile_ensemble_analysis.py')
+        recs = [self.record(1000, s, 'feed', v, s, 2 * s) for s, v in ((1, 27.0), (2, 28.0), (3, 29.0))]
+        recs += [self.record(1000, s, 'relaxed', v, 1.0, 1.0) for s, v in ((1, 26.0), (2, 26.5), (3, 28.0), (4, 20.0))]
+        stats, changes = pea.aggregate(recs)
+        feed = stats['1000_feed']
+        self.assertEqual(feed['n_runs'], 3)
+        self.assertAlmostEqual(feed['slope_deg']['mean'], 28.0, delta=1e-12)
+        self.assertAlmostEqual(feed['slope_deg']['ci95'][1] - 28.0, 4.303 / math.sqrt(3), delta=1e-9)
+        ch = changes['1000']
+        self.assertEqual(ch['seeds'], [1, 2, 3])
+        self.assertAlmostEqual(ch['slope_deg']['mean'], -3.5 / 3, delta=1e-12)
+        self.assertAlmostEqual(feed['dip_pooled']['D'], 0.5, delta=1e-12)
+        self.assertAlmostEqual(feed['dip_pooled']['se'], 0.0, delta=1e-12)
+        self.assertEqual(feed['reciprocity_pooled']['true']['n'], 6)
+        self.assertAlmostEqual(feed['fossil_law_pooled']['flank']['advantage_over_piles']['mean'], 6.0, delta=1e-12)
+        self.assertEqual(feed['fossil_law_pooled']['centre']['layer']['n'], 0)
