@@ -5,28 +5,17 @@ Pure Python (runs inside YADE with ``bash tests/run.sh`` and with ``/usr/bin/pyt
 from tests/).
 """
 import errno
-import importlib.util
 import json
 import os
-import sys
 import tempfile
 import unittest
 
+from yadecd_modules import load
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-PKG = os.path.join(HERE, '..', 'py', 'yadecd')
 
 
-def _load(name, filename):
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, os.path.join(PKG, filename))
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-ck = _load('_yadecd_checkpoint', 'checkpoint.py')
+ck = load('checkpoint')
 
 
 def text_writer(content):

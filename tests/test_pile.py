@@ -1,6 +1,5 @@
 """The sand-pile pipeline: the creation rule on constructed cases, and the whole pipeline
 (deposition, checkpoint/resume, snapshots, analyses, figures) on a tiny pile."""
-import importlib.util
 import json
 import math
 import os
@@ -12,17 +11,15 @@ import numpy as np
 
 from yade import O
 import yadecd.pile as pile
+from yadecd_modules import load
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 
 
 def load_figures():
-    """pile_figures without importing yadecd/__init__ twice (same path as the command line)."""
-    spec = importlib.util.spec_from_file_location('pile_figures_t', os.path.join(REPO, 'py', 'yadecd', 'pile_figures.py'))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """pile_figures loaded from its file, as the command line does."""
+    return load('pile_figures')
 
 
 class TestCreationRule(unittest.TestCase):

@@ -4,33 +4,20 @@ Pure numpy: the module is loaded from its file, so these tests run inside YADE
 (``bash tests/run.sh``) as well as with ``/usr/bin/python3 -m unittest`` from tests/. Every test
 states the formula it checks; "exact" tolerances are 1e-12 relative (round-off only).
 """
-import importlib.util
 import json
 import math
 import os
-import sys
 import tempfile
 import unittest
 
 import numpy as np
 
+from yadecd_modules import load
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-PKG = os.path.join(HERE, '..', 'py', 'yadecd')
 
 
-def _load(name, filename):
-    """Load a module of py/yadecd from its file without importing the yadecd package (whose
-    __init__ needs YADE). Shared with pile_figures through sys.modules."""
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, os.path.join(PKG, filename))
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-pa = _load('_yadecd_pile_analysis', 'pile_analysis.py')
+pa = load('pile_analysis')
 
 EXACT = 1e-12
 
@@ -546,7 +533,7 @@ class TestPipeline(unittest.TestCase):
         """Whole pipeline on a lattice pile: every figure and summary.json written; the floor
         load equals the pile weight (sum of column weights, exact to round-off); the slope of
         a staircase cone of 26° lies within a few degrees of 26°."""
-        pf = _load('_yadecd_pile_figures', 'pile_figures.py')
+        pf = load('pile_figures')
         with tempfile.TemporaryDirectory() as d:
             write_run(d)
             out = os.path.join(d, 'fig')

@@ -7,33 +7,22 @@ bookkeeping.
 Pure numpy (runs inside YADE with ``bash tests/run.sh`` and with ``/usr/bin/python3 -m unittest``
 from tests/).
 """
-import importlib.util
 import json
 import math
 import os
-import sys
 import tempfile
 import unittest
 
 import numpy as np
 
+from yadecd_modules import load
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-PKG = os.path.join(HERE, '..', 'py', 'yadecd')
 
 
-def _load(name, filename):
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, os.path.join(PKG, filename))
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-pa = _load('_yadecd_pile_analysis', 'pile_analysis.py')
-sy = _load('_yadecd_synthetic', 'synthetic.py')
-ens = _load('_yadecd_ensemble', 'ensemble.py')
+pa = load('pile_analysis')
+sy = load('synthetic')
+ens = load('ensemble')
 
 ALL = dict(cap_radius=0.01, sparse_axis=True, foot=True, strays=12)
 
@@ -316,7 +305,7 @@ class TestEnsembleStatistics(unittest.TestCase):
         -1, -1.5, -1 (not from the difference of the means of unpaired seeds: seed 4, relaxed only,
         is left out of the pairing). Pooled dip 1 - (1+2+3)/(2+4+6) = 0.5 with a zero jackknife
         error (every pile has the same ratio)."""
-        pea = _load('_yadecd_pile_ensemble_analysis', 'pile_ensemble_analysis.py')
+        pea = load('pile_ensemble_analysis')
         recs = [self.record(1000, s, 'feed', v, s, 2 * s) for s, v in ((1, 27.0), (2, 28.0), (3, 29.0))]
         recs += [self.record(1000, s, 'relaxed', v, 1.0, 1.0) for s, v in ((1, 26.0), (2, 26.5), (3, 28.0), (4, 20.0))]
         stats, changes = pea.aggregate(recs)
