@@ -411,15 +411,15 @@ def fig_cuts(records, path):
     bx = fig.add_subplot(1, 2, 2)
     lay, rnd = pool('law_angle_layer'), pool('law_angle_random')
     if len(lay):
-        bins = np.linspace(0, 90, 19)
-        bx.hist(lay, bins=bins, color='tab:purple', alpha=0.7, density=True,
+        bins = np.linspace(0, 45, 19)
+        bx.hist(np.clip(lay, 0, 45), bins=bins, color='tab:purple', alpha=0.7, density=True,
                 label='local fossil layer (%d cuts): median %.0f°' % (len(lay), np.median(lay)))
-        bx.hist(rnd, bins=bins, histtype='step', color='k', lw=1.2, density=True,
+        bx.hist(np.clip(rnd, 0, 45), bins=bins, histtype='step', color='k', lw=1.2, density=True,
                 label='random layer (null): median %.0f°' % np.median(rnd))
         bx.legend(fontsize=7)
     else:
         bx.text(0.5, 0.5, 'no cut with a measurable layering', ha='center', va='center', transform=bx.transAxes)
-    bx.set_xlabel('angle between T on a cylindrical cut and the layer [deg]')
+    bx.set_xlabel('angle between T and the layer [deg] (45: 45 or more)')
     bx.set_title('fossil-layer law (Fig. 4)', fontsize=9)
     return pf._save(fig, path)
 
