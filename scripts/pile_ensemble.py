@@ -56,6 +56,8 @@ def main(argv=None):
     a.add_argument('out')
     a.add_argument('--figures', default=None, help='output directory (default OUT/analysis)')
     a.add_argument('--n-boot', type=int, default=2000, help='bootstrap resamples')
+    a.add_argument('--records', action='append', default=[],
+                   help='directory of stored per-run records (e.g. docs/data/ensemble_runs) for runs not in OUT')
     args = p.parse_args(argv)
 
     ens = _load('ensemble', 'ensemble.py')
@@ -86,7 +88,8 @@ def main(argv=None):
         return 0
     stats = _load('pile_ensemble_analysis', 'pile_ensemble_analysis.py')
     out = args.figures or os.path.join(args.out, 'analysis')
-    summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True))
+    summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
+                                     records_from=args.records)
     print('written: %s' % os.path.join(out, 'ensemble_summary.json'))
     return 0 if summary['n_runs_analysed'] else 1
 

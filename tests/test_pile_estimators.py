@@ -321,3 +321,21 @@ class TestEnsembleStatistics(unittest.TestCase):
         self.assertEqual(feed['reciprocity_pooled']['true']['n'], 6)
         self.assertAlmostEqual(feed['fossil_law_pooled']['flank']['advantage_over_piles']['mean'], 6.0, delta=1e-12)
         self.assertEqual(feed['fossil_law_pooled']['centre']['layer']['n'], 0)
+
+
+class TestStoredRecords(unittest.TestCase):
+    def test_stored_records_fill_in_absent_runs_only(self):
+        """Stored records are added for runs the ensemble directory lacks, never twice, and a
+        record from another analysis version is refused with a message naming it."""
+        pea = load('pile_ensemble_analysis')
+        with tempfile.TemporaryDirectory() as d:
+            for run in ('n10_s1', 'n10_s2'):
+                with open(os.path.join(d, run + '_relaxed.json'), 'w') as f:
+                    json.dump({'run': run, 'epoch': 'relaxed', 'cache_version': pea.CACHE_VERSION}, f)
+            got = pea.stored_records([d], {('n10_s1', 'relaxed')})
+            self.assertEqual([r['run'] for r in got], ['n10_s2'])
+            with open(os.path.join(d, 'n10_s3_feed.json'), 'w') as f:
+                json.dump({'run': 'n10_s3', 'epoch': 'feed', 'cache_version': -1}, f)
+            with self.assertRaises(ValueError) as cm:
+                pea.stored_records([d], set())
+            self.assertIn('n10_s3_feed.json', str(cm.exception))

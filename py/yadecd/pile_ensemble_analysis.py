@@ -424,11 +424,35 @@ def fig_cuts(records, path):
     return pf._save(fig, path)
 
 
-def analyse_ensemble(root, out_dir, n_boot=2000, log=print):
-    """Analyse every finished run of the ensemble in ``root``; write the statistics, the table and
-    the figures into ``out_dir``. Returns the summary dict."""
+def stored_records(directories, known):
+    """Per-run records kept from earlier analyses (``<run>_<epoch>.json`` files, e.g. the ones
+    committed in docs/data/ensemble_runs/) for runs not in ``known`` (a set of (run, epoch)):
+    the statistics can then grow by new seeds without the old runs' snapshots."""
+    out = []
+    for d in directories or ():
+        for name in sorted(os.listdir(d)):
+            if not name.endswith('.json'):
+                continue
+            with open(os.path.join(d, name)) as f:
+                rec = json.load(f)
+            if rec.get('cache_version') != CACHE_VERSION:
+                raise ValueError('%s was written by another version of the analysis (%s, now %s): re-analyse its run'
+                                 % (name, rec.get('cache_version'), CACHE_VERSION))
+            if (rec['run'], rec['epoch']) not in known:
+                out.append(rec)
+    return out
+
+
+def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
+    """Analyse every finished run of the ensemble in ``root`` (plus the stored per-run records of
+    ``records_from`` directories for runs absent from ``root``); write the statistics, the table
+    and the figures into ``out_dir``. Returns the summary dict."""
     os.makedirs(out_dir, exist_ok=True)
     records, failed, unfinished = collect(root, out_dir, log=log)
+    extra = stored_records(records_from, {(r['run'], r['epoch']) for r in records})
+    if extra:
+        log('added %d stored records (%s)' % (len(extra), ', '.join(sorted({r['run'] for r in extra}))))
+    records += extra
     stats, changes = aggregate(records)
     summary = {'root': os.path.abspath(root), 'n_runs_analysed': len({r['run'] for r in records}),
                'failed_runs': failed, 'unfinished_runs': unfinished, 'stats': stats,
