@@ -789,47 +789,44 @@ def reciprocal_cuts(snap, pairs):
         a and b), ``rms_diff_Pa`` = rms(a - b), ``rms_mean_Pa`` = rms((a + b)/2).
     """
     cont = _grain_contacts(_normalise(snap))
+    bands1 = [_band_from_contacts(cont, *seg) for seg, _ in pairs]
+    bands2 = [_band_from_contacts(cont, *seg2) for _, seg2 in pairs]
     out = {k: [] for k in ('nT2', 'n2T', 'rel', 'count', 'count2', 'centre')}
-    for seg, seg2 in pairs:
-        b1 = _band_from_contacts(cont, *seg)
-        b2 = _band_from_contacts(cont, *seg2)
-        a, b = float(b1.n @ b2.T), float(b2.n @ b1.T)
-        scale = math.sqrt(np.linalg.norm(b1.T) * np.linalg.norm(b2.T))
+    for b1, b2 in zip(bands1, bands2):
+        a, b, rel = _reciprocity(b1, b2)
         out['nT2'].append(a)
         out['n2T'].append(b)
-        out['rel'].append(abs(a - b) / scale if scale > 0 else float('nan'))
+        out['rel'].append(rel)
         out['count'].append(b1.count)
         out['count2'].append(b2.count)
         out['centre'].append((b1.p0 + b1.p1 + b2.p0 + b2.p1) / 4)
     out = {k: np.array(v, dtype=float) for k, v in out.items()}
     out['centre'] = out['centre'].reshape(-1, 2)
     out.update(_reciprocity_stats(out['nT2'], out['n2T'], out['rel']))
-    out['rel_null'] = _reciprocity_null(cont, pairs)
+    out['rel_null'] = _reciprocity_null(bands1, bands2)
     ok = np.isfinite(out['rel_null'])
     out['rel_null_mean'] = float(out['rel_null'][ok].mean()) if ok.any() else float('nan')
     out['rel_null_median'] = float(np.median(out['rel_null'][ok])) if ok.any() else float('nan')
     return out
 
 
-def _reciprocity_null(cont, pairs):
+def _reciprocity(b1, b2):
+    """n·T', n'·T [Pa] and |n·T' - n'·T|/sqrt(|T||T'|) (nan for an empty band) of two bands."""
+    a, b = float(b1.n @ b2.T), float(b2.n @ b1.T)
+    scale = math.sqrt(np.linalg.norm(b1.T) * np.linalg.norm(b2.T))
+    return a, b, (abs(a - b) / scale if scale > 0 else float('nan'))
+
+
+def _reciprocity_null(bands1, bands2):
     """The reciprocity statistic with no reason to hold: each pair's second band is replaced by
     the second band of the pair half the list further on (rounded to a multiple of six, the
     pairs per centre, so the orientations match), i.e. T' is measured at a distant place of the
     pile. Its spread is the scale against which the true pairs' agreement is read."""
-    k = len(pairs)
+    k = len(bands1)
     shift = 6 * max(1, (k // 6) // 2)
     if k < 7 or shift >= k:
         return np.full(k, np.nan)
-    rel = np.full(k, np.nan)
-    bands1 = [_band_from_contacts(cont, *seg) for seg, _ in pairs]
-    bands2 = [_band_from_contacts(cont, *seg2) for _, seg2 in pairs]
-    for i in range(k):
-        b1, b2 = bands1[i], bands2[(i + shift) % k]
-        a, b = float(b1.n @ b2.T), float(b2.n @ b1.T)
-        scale = math.sqrt(np.linalg.norm(b1.T) * np.linalg.norm(b2.T))
-        if scale > 0:
-            rel[i] = abs(a - b) / scale
-    return rel
+    return np.array([_reciprocity(bands1[i], bands2[(i + shift) % k])[2] for i in range(k)])
 
 
 def _reciprocity_stats(a, b, rel):

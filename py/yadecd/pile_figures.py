@@ -499,15 +499,14 @@ def measure(snap, ring_width=None, n_sectors=8, band_length=None, band_height=No
     dip = pa.central_dip(snap, n_sectors=n_sectors, d=d)
     recip = pa.reciprocal_cuts(snap, pa.reciprocal_pairs(_reciprocal_centres(prof, band_length, clearance),
                                                          length=band_length))
-    radii, heights = _pile_grids(prof, band_height * 2 / 3, band_height / 2)
-    cyl = pa.cylindrical_cut_directions(snap, radii, heights, band_height)
-    cyl['inside'] = cyl['z'] - prof['z_floor'] + band_height / 2 < _surface_height(prof, cyl['r'])
-    # the law is tested on a grid twice as fine (cuts one diameter apart, overlapping): more cuts
-    # per pile; the ensemble's interval is over piles, which are independent
+    # cuts one third of a band height apart (overlapping): the law is tested on all of them (more
+    # cuts per pile; the ensemble's interval is over piles, which are independent), Figure 4
+    # draws every other one
     radii, heights = _pile_grids(prof, band_height / 3, band_height / 2)
     fine = pa.cylindrical_cut_directions(snap, radii, heights, band_height)
     fine['inside'] = fine['z'] - prof['z_floor'] + band_height / 2 < _surface_height(prof, fine['r'])
     law = pa.fossil_law(snap, fine, layer_radius, prof['slope_deg'])
+    cyl = {k: (v[::2, ::2] if isinstance(v, np.ndarray) else v) for k, v in fine.items()}
     hist = pa.contact_orientation_histogram(snap)
     return {'prof': prof, 'gp': gp, 'dip': dip, 'recip': recip, 'cyl': cyl, 'law': law, 'hist': hist,
             'settings': {'ring_width_m': ring_width, 'n_sectors': n_sectors, 'band_length_m': band_length,
