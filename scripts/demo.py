@@ -19,7 +19,7 @@ ap.add_argument('--n-grains', type=int, default=300)
 a = ap.parse_args(sys.argv[1:])
 t0 = time.time()
 print('demo: building a %d-grain Contact Dynamics pile in %s (paper protocol, about a minute)' % (a.n_grains, a.out))
-pile.run(a.out, n_grains=a.n_grains, relax=0.5, snap_every=0.5)
+pile.run(a.out, n_grains=a.n_grains, relax=0.5, snap_every=0.5, overwrite=True)  # the demo's own directory
 repo = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))
 fig = os.path.join(a.out, 'figures')
 subprocess.run(['/usr/bin/python3', os.path.join(repo, 'scripts', 'pile_figures.py'), a.out, '--out', fig], check=True)

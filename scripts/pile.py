@@ -16,6 +16,7 @@ values are Python expressions, so strings are quoted::
 Then run ``scripts/pile_figures.py DIR``.
 """
 import argparse
+import errno
 import os
 import sys
 
@@ -23,7 +24,9 @@ from yadecd import pile
 
 parser = argparse.ArgumentParser(prog='pile.py', description=__doc__.split('\n')[0])
 parser.add_argument('--out', default='out/pile', help='run directory (created)')
-parser.add_argument('--resume', action='store_true', help='continue the run in --out from its checkpoint')
+parser.add_argument('--resume', action='store_true', help='continue the run in --out from its newest valid checkpoint '
+                    '(only --stop-time, --checkpoint-every and --vtk may be given anew)')
+parser.add_argument('--overwrite', action='store_true', help='start again in --out even if it holds a run (its files are removed)')
 for key, value in pile.DEFAULTS.items():
     flag = '--' + key.replace('_', '-')
     if isinstance(value, bool):
@@ -42,8 +45,21 @@ if os.environ.get('YADE_BATCH'):
     params = {k: getattr(t, k) for k in pile.DEFAULTS}
     out = t.out
 
-p = pile.run(out, resume=args.resume, **params)
-print('pile done: %d grains in %.0f s wall time; run directory %s' % (p['n_grains'], p['wall_time_s'], out))
+if args.resume and args.overwrite:
+    parser.error('--resume and --overwrite exclude each other')
+try:
+    p = pile.run(out, resume=args.resume, overwrite=args.overwrite, **params)
+except (ValueError, OSError, pile.CheckpointError, pile.runstate.RunStateError) as e:
+    # every check of pile.run happens before the first step; a full disk stops a run at its next write
+    message = str(e)
+    if isinstance(e, OSError) and e.errno == errno.ENOSPC:
+        message = ('the disk is full (%s); the last checkpoint is intact: free some space and continue with --resume'
+                   % e)
+    sys.stderr.write('pile.py: error: %s\n' % message)
+    sys.stderr.flush()
+    os._exit(2)
+print('pile %s: %d grains in %.0f s wall time; run directory %s'
+      % ('done' if p['finished'] else 'stopped at t=%.3f s' % p['stop_time'], p['n_grains'], p['wall_time_s'], out))
 if os.environ.get('YADE_BATCH'):
     from yade import utils
     utils.waitIfBatch()

@@ -31,7 +31,7 @@ with open(os.path.join(a.run_dir, 'run.json')) as f:
 
 
 def solve(tol):
-    O.load(os.path.join(a.run_dir, 'checkpoint.yade.gz'))
+    O.load(pile.latest_scene(a.run_dir))
     cd = O.engines[-1]
     cd.tolerance, cd.maxIter, cd.warnUnconverged = tol, a.max_iter, False
     t0 = time.time()

@@ -21,10 +21,10 @@ public:
 		"Contact physics of a rigid Contact Dynamics contact (:yref:`ContactDynamicsIntegrator`). It derives from :yref:`FrictPhys` so that YADE's utilities (``utils.getStress``, ``utils.unbalancedForce``...) read its forces; :yref:`kn<NormPhys.kn>` and :yref:`ks<NormShearPhys.ks>` stay 0, since contacts are rigid. :yref:`normalForce<NormPhys.normalForce>` and :yref:`shearForce<NormShearPhys.shearForce>` are the mean force exerted on body 2 by body 1 over the last step (impulse / dt) [N].",
 		((Real, en, 0, , "Normal restitution coefficient [-], in [0,1]. Moreau's law is applied to the weighted mean (U_f + en·U_i)/(1+en) of the initial and final normal relative velocities."))
 		((Real, et, 0, , "Tangential restitution coefficient [-], in [-1,1] (0: no tangential restitution); applied as en is, to the tangential velocity."))
-		((Vector3r, impulse, Vector3r::Zero(), Attr::readonly, "Contact impulse on body 2 over the last step, in global coordinates [N·s]. It warm-starts the next step's solve. |yupdate|"))
-		((int, status, 0, Attr::readonly, "Contact status after the last solve: 0 open (no impulse), 1 sticking, 2 sliding. |yupdate|"))
-		((Real, overlapAllowance, NaN, Attr::readonly, "Overlap this contact may keep [m]: the overlap it was created with (e.g. by packing generation), shrinking whenever the overlap does; NaN until its first step. The position correction of :yref:`ContactDynamicsIntegrator` removes any overlap beyond it. |yupdate|"))
-		((Vector3r, approachVelocity, Vector3r::Zero(), Attr::readonly, "For a contact that closed within the last step (landing), the relative velocity (global coordinates) it had at the start of that step [m/s]; used as the initial velocity of the restitution law at the next step. Zero otherwise. |yupdate|"))
+		((Vector3r, impulse, Vector3r::Zero(), , "Contact impulse on body 2 over the last step, in global coordinates [N·s]. It warm-starts the next step's solve. Written by the solver; set from Python only to restore a saved state (``yadecd.runstate``). |yupdate|"))
+		((int, status, 0, , "Contact status after the last solve: 0 open (no impulse), 1 sticking, 2 sliding. Written by the solver; set from Python only to restore a saved state. |yupdate|"))
+		((Real, overlapAllowance, NaN, , "Overlap this contact may keep [m]: the overlap it was created with (e.g. by packing generation), shrinking whenever the overlap does; NaN until its first step. The position correction of :yref:`ContactDynamicsIntegrator` removes any overlap beyond it. Set from Python only to restore a saved state. |yupdate|"))
+		((Vector3r, approachVelocity, Vector3r::Zero(), , "For a contact that closed within the last step (landing), the relative velocity (global coordinates) it had at the start of that step [m/s]; used as the initial velocity of the restitution law at the next step. Zero otherwise. Set from Python only to restore a saved state. |yupdate|"))
 		,
 		createIndex();
 	);

@@ -185,6 +185,14 @@ private:
 	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
 
 public:
+// Test only (tests/test_runstate.py builds a second copy of the plugin with it): one more
+// serialized attribute, so that a checkpoint written before a change of the class layout can be
+// shown to resume after it. Never defined in a normal build.
+#ifdef YADECD_THROWAWAY_ATTRIBUTE
+#define YADECD_THROWAWAY_ATTR ((int, throwawayAttribute, 7, , "Test-only serialized attribute (YADECD_THROWAWAY_ATTRIBUTE builds)."))
+#else
+#define YADECD_THROWAWAY_ATTR
+#endif
 	// clang-format off
 	YADE_CLASS_BASE_DOC_ATTRS_CTOR_PY(ContactDynamicsIntegrator, NewtonIntegrator,
 		"Moreau's Contact Dynamics (non-smooth, rigid-contact) time integrator [Moreau1988]_, replacing :yref:`NewtonIntegrator` in a CD scene. Each step: q_m = q_i + h/2·u_i; contact frames at q_m; an implicit velocity step in which all contact impulses are solved together by nonlinear Gauss–Seidel with the exact Signorini–Coulomb law (unilateral contact, Coulomb cone, Moreau's restitution mean); q_f = q_m + h/2·u_f. Contacts come from :yref:`Law2_ScGeom_CDPhys_Coulomb` / :yref:`CDPhys`. Gravity comes from :yref:`gravity<NewtonIntegrator.gravity>`; other forces in ``O.forces`` (``addF``, ``setPermF``, :yref:`GravityEngine`) enter the free velocity too. Fixed bodies and :yref:`blockedDOFs<State.blockedDOFs>` keep their velocity (moving walls are time-dependent obstacles). Results: contact forces in :yref:`CDPhys`, per-body totals in ``O.forces`` (gravity excluded, as with NewtonIntegrator), energies with ``O.trackEnergy``. Unsupported: periodic cells, clumps; :yref:`damping<NewtonIntegrator.damping>` must stay 0. See the plugin's ``docs/method.md``.",
@@ -215,6 +223,7 @@ public:
 		((int, nInterface, 0, (Attr::readonly | Attr::noSave), "Contacts of the last step's slab sweep (sweepOrder 5) in the sequential interface between slabs. |yupdate|"))
 		((int, nColours, 0, (Attr::readonly | Attr::noSave), "Colours of the last step's coloured sweep (sweepOrder 4; 65 means some contacts fell in the sequential overflow group). |yupdate|"))
 		((vector<Real>, residualHistory, , Attr::readonly, "Residual after each checked sweep of the last step, if :yref:`recordResidual<ContactDynamicsIntegrator.recordResidual>`. |yupdate|"))
+		YADECD_THROWAWAY_ATTR
 		((int, contactDissipIx, -1, (Attr::hidden | Attr::noSave), "Energy index: contact dissipation."))
 		((int, extWorkIx, -1, (Attr::hidden | Attr::noSave), "Energy index: work of O.forces."))
 		((int, kinematicWorkIx, -1, (Attr::hidden | Attr::noSave), "Energy index: work on kinematic bodies."))

@@ -190,3 +190,12 @@ class CheckpointStore:
         if units:
             raise CheckpointError('no valid checkpoint in %s: %s' % (self.root, '; '.join(self.messages)))
         return None
+
+
+def has_checkpoint(run_dir):
+    """Whether ``run_dir`` holds a checkpoint to resume from: a unit of this store, or a
+    first-release ``checkpoint.json``."""
+    root = os.path.join(run_dir, 'ckpt')
+    if os.path.isdir(root) and any(n.isdigit() or n == POINTER for n in os.listdir(root)):
+        return True
+    return os.path.exists(os.path.join(run_dir, 'checkpoint.json'))

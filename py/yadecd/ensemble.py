@@ -10,8 +10,8 @@ Layout of an ensemble directory::
     n<N>_s<S>/             the run directory of the pile of N grains and seed S (pile.py layout)
     n<N>_s<S>/log.txt      its YADE output
 
-A run is *done* when its ``run.json`` carries ``wall_time_s`` (written by :func:`yadecd.pile.run`
-after the last step) and its last snapshot exists. Calling :func:`run_ensemble` again skips the
+A run is *done* when its ``run.json`` carries ``wall_time_s`` and ``finished`` (written by
+:func:`yadecd.pile.run` after its last step) and a snapshot exists. Calling :func:`run_ensemble` again skips the
 done runs and resumes the others from their checkpoints (``--resume``), so an ensemble survives a
 killed driver. A run that fails (non-zero exit, a bad option) is recorded as ``failed`` with its
 exit code and the tail of its log; the other runs go on.
@@ -79,7 +79,7 @@ def is_done(run_dir):
             p = json.load(f)
     except (OSError, ValueError):
         return False
-    return 'wall_time_s' in p and any(n.startswith('snap_') for n in os.listdir(run_dir))
+    return 'wall_time_s' in p and p.get('finished', True) and any(n.startswith('snap_') for n in os.listdir(run_dir))
 
 
 def _tail(path, n=12):
@@ -178,7 +178,8 @@ def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_faile
                 rec = runs[name]
                 run_dir = os.path.join(ens.root, name)
                 os.makedirs(run_dir, exist_ok=True)
-                resume = os.path.exists(os.path.join(run_dir, 'checkpoint.json'))
+                # a started run resumes (from its checkpoint, or again from its run.json)
+                resume = os.path.exists(os.path.join(run_dir, 'run.json'))
                 logf = open(os.path.join(run_dir, 'log.txt'), 'a')
                 logf.write('\n=== %s %s\n' % (time.strftime('%Y-%m-%d %H:%M:%S'), 'resume' if resume else 'start'))
                 logf.flush()

@@ -17,13 +17,12 @@ Young's modulus ``young``, Cundall damping ``md_damping``, ``O.dt = md_safety·P
 the CD-versus-MD comparison of a pile (``scripts/compare_pile.py``).
 
 A run directory holds ``run.json`` (the parameters), ``snap_<time>.npz`` snapshots (the data
-every analysis needs, see :func:`snapshot`), ``checkpoint.yade.gz`` + ``checkpoint.json`` (the
-state to ``resume`` from) and ``progress.csv``.
+every analysis needs, see :func:`snapshot`), ``ckpt/`` (verified checkpoint units to ``resume``
+from, see :class:`PileRun` and docs/reliability.md) and ``progress.csv``.
 """
 import json
 import math
 import os
-import sys
 import time
 
 import numpy as np
@@ -31,7 +30,8 @@ import numpy as np
 from yade import O, utils, Vector3
 from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
-from . import engines
+from . import engines, runstate
+from .checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .scenes import material
 
 DEFAULTS = dict(
@@ -108,18 +108,26 @@ def paving(rng, radius, d_min, d_max, attempts_per_grain=60):
     return np.array(placed)
 
 
-def build_scene(p):
+def build_scene(p, floor=None):
     """Reset O and create the floor (wall + paving) and the engines. Returns the number of
-    paving grains."""
+    paving grains. ``floor``: the paving's (x, y, r) rows to place instead of drawing a new one
+    (a run rebuilt from its saved state)."""
     O.reset()
-    rng = np.random.default_rng(p['seed'] + 1_000_003)  # the paving has its own stream
     mat = material(p['mu'], p['rho'])
     O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
-    floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
-    for x, y, r in paving(rng, floor_radius, p['d_min'], p['d_max']):
+    if floor is None:
+        rng = np.random.default_rng(p['seed'] + 1_000_003)  # the paving has its own stream
+        floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
+        floor = paving(rng, floor_radius, p['d_min'], p['d_max'])
+    for x, y, r in floor:
         O.bodies.append(utils.sphere((x, y, r), r, fixed=True, material=mat, color=(0.5, 0.5, 0.5)))
     set_engines(p)
     return len(O.bodies) - 1
+
+
+def add_grain(x, y, z, r):
+    """Append one pile grain (the run's material, at rest); returns its id."""
+    return O.bodies.append(utils.sphere((x, y, z), r, material=O.materials[0]))
 
 
 def set_engines(p):
@@ -279,8 +287,9 @@ class Feeder:
     """Creates grains by the paper's rule. Keeps the list of grains near the axis (the only ones
     a new grain can touch), refreshed from all grains every ``refresh`` creations."""
 
-    def __init__(self, p, rng, births):
+    def __init__(self, p, rng, births, clock=None):
         self.p, self.rng, self.births = p, rng, births
+        self.clock = clock or Clock()    # the run's clock (birth times); default: YADE's
         self.reach = p['feed_radius'] + p['d_max']  # a grain outside this cylinder is never touched
         self.near = []
         self.count = 0
@@ -301,9 +310,8 @@ class Feeder:
         centres = np.array([tuple(s.pos) for s in states]) if states else np.zeros((0, 3))
         radii = np.array([O.bodies[i].shape.radius for i in self.near])
         z = creation_height(x, y, r, centres, radii)
-        mat = O.materials[0]
-        bid = O.bodies.append(utils.sphere((x, y, z), r, material=mat))
-        self.births[bid] = O.time
+        bid = add_grain(x, y, z, r)
+        self.births[bid] = self.clock.time()
         self.near.append(bid)
         self.count += 1
         return bid
@@ -311,9 +319,10 @@ class Feeder:
 
 # ----------------------------------------------------------------------------- records
 
-def snapshot(path, births, p):
-    """Save what the analyses need at the current time (SI): grains (pos, radius, vel, fixed,
-    birth time, ids) and contacts (ids, point, normal, force on body 2 [N])."""
+def snapshot(path, births, p, t=None):
+    """Save what the analyses need at the current time ``t`` (default O.time; SI): grains (pos,
+    radius, vel, fixed, birth time, ids) and contacts (ids, point, normal, force on body 2 [N]).
+    Written under a temporary name and renamed: a kill never leaves half a snapshot."""
     ids, pos, rad, vel, fixed, birth = [], [], [], [], [], []
     for b in O.bodies:
         if not isinstance(b.shape, Sphere):
@@ -334,119 +343,417 @@ def snapshot(path, births, p):
         cp.append(tuple(i.geom.contactPoint))
         cn.append(tuple(i.geom.normal))
         cf.append(tuple(f))
-    np.savez_compressed(path, time=O.time, g=p['g'], rho=p['rho'], ids=np.array(ids), pos=np.array(pos),
-                        radius=np.array(rad), vel=np.array(vel), fixed=np.array(fixed), birth=np.array(birth),
-                        c_id1=np.array(c1, dtype=int), c_id2=np.array(c2, dtype=int), c_point=np.array(cp).reshape(-1, 3),
-                        c_normal=np.array(cn).reshape(-1, 3), c_force=np.array(cf).reshape(-1, 3))
+    tmp = path + '.tmp'
+    with open(tmp, 'wb') as f:
+        np.savez_compressed(f, time=O.time if t is None else t, g=p['g'], rho=p['rho'], ids=np.array(ids), pos=np.array(pos),
+                            radius=np.array(rad), vel=np.array(vel), fixed=np.array(fixed), birth=np.array(birth),
+                            c_id1=np.array(c1, dtype=int), c_id2=np.array(c2, dtype=int), c_point=np.array(cp).reshape(-1, 3),
+                            c_normal=np.array(cn).reshape(-1, 3), c_force=np.array(cf).reshape(-1, 3))
+    os.replace(tmp, path)
 
-
-def save_checkpoint(run_dir, state):
-    """Between steps (never from inside O.run), so that a resumed run continues exactly."""
-    tmp = os.path.join(run_dir, 'checkpoint.tmp.yade.gz')
-    O.save(tmp)
-    with open(os.path.join(run_dir, 'checkpoint.json.tmp'), 'w') as f:
-        json.dump(state, f)
-    os.replace(tmp, os.path.join(run_dir, 'checkpoint.yade.gz'))
-    os.replace(os.path.join(run_dir, 'checkpoint.json.tmp'), os.path.join(run_dir, 'checkpoint.json'))
-
-
-# ----------------------------------------------------------------------------- driver
 
 def snapshot_times(p, t_end):
+    """Times [s] of a run's snapshots: its epochs, or every snap_every up to t_end (the last at t_end)."""
     if p['epochs']:
-        return sorted(float(t) for t in str(p['epochs']).split(',') if t.strip())
+        return _epoch_list(p['epochs'])
     k = max(1, int(round(t_end / p['snap_every'])))
     return [t_end * (i + 1) / k for i in range(k)]
 
 
-def run(run_dir, resume=False, log=print, **overrides):
-    """Build (or resume) a pile in ``run_dir``; returns the run's parameter dict.
+# ----------------------------------------------------------------------------- parameters
 
-    Progress lines give simulated time, grains, contacts, Gauss–Seidel sweeps and residual of
-    the last step, the wall-clock rate and the ETA. Snapshots go to ``snap_<t>.npz``."""
-    os.makedirs(run_dir, exist_ok=True)
-    ck = os.path.join(run_dir, 'checkpoint.json')
-    if resume and os.path.exists(ck):
-        with open(os.path.join(run_dir, 'run.json')) as f:
-            p = json.load(f)
-        with open(ck) as f:
-            state = json.load(f)
-        O.load(os.path.join(run_dir, 'checkpoint.yade.gz'))
-        births = {int(k): v for k, v in state['births'].items()}
-        rng = np.random.default_rng()
-        rng.bit_generator.state = state['rng']
-        feeder = Feeder(p, rng, births)
-        feeder.count = state['created']
-        done_snaps = set(state['snaps'])
-        log('resumed %s at t=%.3f s, %d grains' % (run_dir, O.time, feeder.count))
-    else:
+# Options a resumed run may be given anew; any other option must equal the run's own.
+RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk')
+
+
+def _epoch_list(epochs):
+    try:
+        return sorted(float(t) for t in str(epochs).split(',') if t.strip())
+    except ValueError:
+        raise ValueError("epochs must be comma-separated times in seconds, not %r" % (epochs,)) from None
+
+
+def check_params(p):
+    """Raise ValueError naming the first bad parameter of a pile run (before any work is done)."""
+    unknown = set(p) - set(DEFAULTS)
+    if unknown:
+        raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
+    for key, default in DEFAULTS.items():
+        v = p[key]
+        if isinstance(default, bool):
+            ok = isinstance(v, (bool, np.bool_))
+        elif isinstance(default, (int, float)):
+            ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
+        else:
+            ok = isinstance(v, str)
+        if not ok:
+            raise ValueError('pile parameter %s must be a %s, not %r' % (key, type(default).__name__, v))
+    rules = [
+        ('n_grains', p['n_grains'] >= 1 and int(p['n_grains']) == p['n_grains'], 'a positive integer'),
+        ('d_min', p['d_min'] > 0, 'positive [m]'),
+        ('d_max', p['d_max'] >= p['d_min'], '>= d_min [m]'),
+        ('rho', p['rho'] > 0, 'positive [kg/m³]'),
+        ('mu', p['mu'] >= 0, '>= 0'),
+        ('en', 0 <= p['en'] <= 1, 'in [0, 1]'),
+        ('g', p['g'] > 0, 'positive [m/s²]'),
+        ('dt', p['dt'] > 0, 'positive [s]'),
+        ('rate', p['rate'] > 0, 'positive [grains/s]'),
+        ('feed_radius', p['feed_radius'] >= 0, '>= 0 [m]'),
+        ('floor_radius', p['floor_radius'] >= 0, '>= 0 [m] (0: sized from n_grains)'),
+        ('relax', p['relax'] >= 0, '>= 0 [s]'),
+        ('snap_every', p['snap_every'] > 0, 'positive [s]'),
+        ('checkpoint_every', p['checkpoint_every'] > 0, 'positive [s of wall time]'),
+        ('tolerance', 0 < p['tolerance'] < 1, 'in (0, 1)'),
+        ('max_iter', p['max_iter'] >= 1, '>= 1'),
+        ('relaxation', 0 < p['relaxation'] < 2, 'in (0, 2)'),
+        ('sweep_order', p['sweep_order'] in (0, 1, 2, 3, 4, 5), 'one of 0–5'),
+        ('stop_time', p['stop_time'] >= 0, '>= 0 [s]'),
+        ('method', p['method'] in ('CD', 'MD'), "'CD' or 'MD'"),
+        ('young', p['young'] > 0, 'positive [Pa]'),
+        ('md_safety', 0 < p['md_safety'] <= 1, 'in (0, 1]'),
+        ('md_damping', 0 <= p['md_damping'] < 1, 'in [0, 1)'),
+    ]
+    for key, ok, what in rules:
+        if not ok:
+            raise ValueError('pile parameter %s must be %s (got %r)' % (key, what, p[key]))
+    if any(t <= 0 for t in _epoch_list(p['epochs'])):
+        raise ValueError('pile parameter epochs must hold positive times (got %r)' % (p['epochs'],))
+
+
+def disk_need(p):
+    """Bytes a run needs in its directory, estimated from its size: the checkpoints kept (three
+    units at once while one is written; 1000 B per body each, measured 480 on a 100-grain pile,
+    whose grains have fewer contacts than a large pile's) and the snapshots (400 B per body each,
+    measured 125)."""
+    floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
+    d_mean = 0.5 * (p['d_min'] + p['d_max'])
+    bodies = p['n_grains'] + 0.55 * (floor_radius / (0.5 * d_mean)) ** 2
+    period = max(1, int(round(1 / (p['rate'] * p['dt']))))
+    t_end = p['n_grains'] * period * p['dt'] + p['relax']
+    n_snaps = len(snapshot_times(p, t_end))
+    return int(bodies * (3 * 1000 + n_snaps * 400) + 1e6)
+
+
+def preflight(run_dir, p):
+    """Fail before work: the run directory must be creatable, writable, and hold room for the
+    run's checkpoints and snapshots. Raises OSError / CheckpointError with the cause."""
+    try:
+        os.makedirs(run_dir, exist_ok=True)
+        probe = os.path.join(run_dir, '.write-probe')
+        with open(probe, 'wb') as f:
+            f.write(b'\0' * 4096)
+            f.flush()
+            os.fsync(f.fileno())
+        os.remove(probe)
+    except OSError as e:
+        raise CheckpointError('run directory %s is not usable: %s' % (run_dir, e.strerror or e)) from e
+    st = os.statvfs(run_dir)
+    free, need = st.f_bavail * st.f_frsize, disk_need(p)
+    if free < need:
+        raise CheckpointError('run directory %s has %.1f MB free; this run needs about %.1f MB for its checkpoints '
+                              'and snapshots' % (run_dir, free / 1e6, need / 1e6))
+
+
+# ----------------------------------------------------------------------------- driver
+
+class Clock:
+    """The run's time and step count: O.time and O.iter plus the offsets of a run rebuilt from
+    its saved state (YADE's clock restarts at 0 in a new scene). 0 + x == x, so a run that never
+    was rebuilt keeps O.time's exact values."""
+
+    def __init__(self, t0=0.0, i0=0):
+        self.t0, self.i0 = t0, i0
+
+    def time(self):
+        return self.t0 + O.time
+
+    def iter(self):
+        return self.i0 + O.iter
+
+
+RUN_FILES = ('run.json', 'progress.csv', 'checkpoint.json', 'checkpoint.yade.gz')
+
+
+class PileRun:
+    """One pile run in its directory: started, resumed from a checkpoint, advanced, checkpointed.
+
+    A checkpoint is one verified unit of :class:`yadecd.checkpoint.CheckpointStore` holding
+    ``state.npz`` (the layout-independent state, :mod:`yadecd.runstate`) and ``scene.yade.gz``
+    (YADE's archive, the fast path: it resumes bit for bit when the plugin is the same)."""
+
+    def __init__(self, run_dir, p, log):
+        self.run_dir, self.p, self.log = run_dir, p, log
+        self.store = CheckpointStore(run_dir)
+        self.clock = Clock()
+        self.births, self.done_snaps = {}, set()
+        self.rng = np.random.default_rng(p['seed'])
+        self.feeder = Feeder(p, self.rng, self.births, self.clock)
+        self.resumed_from = None     # description of the checkpoint resumed from
+
+    # ------------------------------------------------------------------ starting
+    @classmethod
+    def start(cls, run_dir, overrides, log=print, overwrite=False):
+        """A new run: parameters checked, directory checked (an existing run is never replaced
+        unless ``overwrite``), floor and engines built, ``run.json`` written."""
         p = dict(DEFAULTS)
         p.update({k: v for k, v in overrides.items() if v is not None})
-        unknown = set(p) - set(DEFAULTS)
+        check_params(p)
+        if has_run(run_dir):
+            if not overwrite:
+                raise FileExistsError('%s already holds a pile run: pass resume=True (--resume) to continue it, or '
+                                      'overwrite=True (--overwrite) to start it again' % run_dir)
+            clear_run(run_dir)
+        preflight(run_dir, p)
+        self = cls(run_dir, p, log)
+        p['n_paving'] = build_scene(p)
+        _write_json(os.path.join(run_dir, 'run.json'), p)
+        return self
+
+    @classmethod
+    def resume(cls, run_dir, overrides, log=print):
+        """Continue the run in ``run_dir`` from its newest valid checkpoint (a damaged one is
+        reported and the one before it used). ``overrides`` may only change RESUME_MAY_CHANGE;
+        a run killed before its first checkpoint starts again from its ``run.json``."""
+        path = os.path.join(run_dir, 'run.json')
+        if not os.path.exists(path):
+            raise FileNotFoundError('nothing to resume in %s: it holds no run.json' % run_dir)
+        p = dict(DEFAULTS)      # options added since the run began take their defaults
+        with open(path) as f:
+            p.update(json.load(f))
+        given = {k: v for k, v in overrides.items() if v is not None}
+        unknown = set(given) - set(DEFAULTS)
         if unknown:
             raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
-        if not (0 < p['d_min'] <= p['d_max']):
-            raise ValueError('need 0 < d_min <= d_max (got %g, %g)' % (p['d_min'], p['d_max']))
-        if p['n_grains'] < 1 or p['rate'] <= 0 or p['dt'] <= 0:
-            raise ValueError('n_grains, rate and dt must be positive')
-        if p['method'] not in ('CD', 'MD'):
-            raise ValueError("method must be 'CD' or 'MD', not %r" % (p['method'],))
-        n_paving = build_scene(p)
-        p['n_paving'] = n_paving
-        with open(os.path.join(run_dir, 'run.json'), 'w') as f:
-            json.dump(p, f, indent=1)
-        rng = np.random.default_rng(p['seed'])
-        births = {}
-        feeder = Feeder(p, rng, births)
-        done_snaps = set()
-    period = max(1, int(round(1 / (p['rate'] * p['dt']))))  # steps between creations
-    t_feed = p['n_grains'] * period * p['dt']
-    t_end = t_feed + p['relax']
-    snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in done_snaps]
-    wall0, sim0 = time.time(), O.time
-    last_ck = last_log = time.time()
-    progress = open(os.path.join(run_dir, 'progress.csv'), 'a')
-    if progress.tell() == 0:
-        progress.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
+        clash = ['%s (run: %r, given: %r)' % (k, p.get(k), v) for k, v in sorted(given.items())
+                 if k not in RESUME_MAY_CHANGE and p.get(k) != v]
+        if clash:
+            raise ValueError('options differ from the run being resumed in %s: %s; only %s may change on resume'
+                             % (run_dir, ', '.join(clash), ', '.join(RESUME_MAY_CHANGE)))
+        p['stop_time'] = 0.0            # a stop applies to the segment it was given for
+        p.update({k: v for k, v in given.items() if k in RESUME_MAY_CHANGE})
+        check_params({k: v for k, v in p.items() if k in DEFAULTS})
+        preflight(run_dir, p)
+        for name in os.listdir(run_dir):      # files a kill left half-written (snapshots, run.json)
+            if name.endswith('.tmp') and os.path.isfile(os.path.join(run_dir, name)):
+                os.remove(os.path.join(run_dir, name))
+        self = cls(run_dir, p, log)
+        latest = self.store.latest()
+        for m in self.store.messages:
+            log('checkpoint: ' + m)
+        if latest is not None:
+            self._resume_unit(*latest)
+        elif os.path.exists(os.path.join(run_dir, 'checkpoint.json')):
+            self._resume_release_1()
+        else:
+            log('no checkpoint yet in %s: starting the run again' % run_dir)
+            clear_run(run_dir, keep=('run.json',))
+            p['n_paving'] = build_scene(p)
+            return self
+        self._truncate_progress()
+        log('resumed %s at t=%.3f s, %d grains (%s)' % (run_dir, self.clock.time(), self.feeder.count, self.resumed_from))
+        return self
 
-    def state():
-        return dict(births={str(k): v for k, v in births.items()}, rng=rng.bit_generator.state,
-                    created=feeder.count, snaps=sorted(done_snaps))
+    def _restore_counters(self, meta, births, near):
+        self.births.update(births)
+        self.rng.bit_generator.state = meta['rng']
+        self.feeder.count = int(meta['created'])
+        self.feeder.near = [int(i) for i in near]
+        self.done_snaps.update(meta['snaps'])
 
-    t_stop = min(t_end, overrides.get('stop_time') or (0 if resume else p['stop_time']) or t_end)
-    while O.time < t_stop - 0.5 * p['dt']:
-        if feeder.count < p['n_grains'] and O.iter % period == 0:
-            feeder.create()
-        steps = period - O.iter % period
-        if snaps:
-            steps = min(steps, max(1, int(round((snaps[0] - O.time) / p['dt']))))
-        steps = min(steps, max(1, int(round((t_stop - O.time) / p['dt']))))
-        O.run(steps, True)
-        if snaps and O.time >= snaps[0] - 0.5 * p['dt']:
-            tag = '%.3f' % snaps.pop(0)
-            snapshot(os.path.join(run_dir, 'snap_%08.3f.npz' % O.time), births, p)
-            if p['vtk']:
-                from yade import export
-                export.VTKExporter(os.path.join(run_dir, 'vtk_%08.3f' % O.time)).exportSpheres(what=dict(vel='b.state.vel'))
-            done_snaps.add(tag)
-        now = time.time()
-        if now - last_log > 10 or O.time >= t_stop - 0.5 * p['dt']:
-            rate = (O.time - sim0) / max(now - wall0, 1e-9)
-            eta = (t_end - O.time) / rate if rate > 0 else float('inf')
-            contacts, sweeps, residual = solver_stats()
-            log('t=%7.3f s  grains %6d/%d  contacts %6d  sweeps %4d  residual %.1e  %.3f sim-s/s  ETA %s'
-                % (O.time, feeder.count, p['n_grains'], contacts, sweeps, residual, rate,
-                   time.strftime('%H:%M:%S', time.gmtime(eta)) if eta < 1e7 else '?'))
-            progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (O.time, feeder.count, contacts, sweeps, residual, now - wall0))
-            progress.flush()
-            last_log = now
-        if now - last_ck > p['checkpoint_every']:
-            save_checkpoint(run_dir, state())
-            last_ck = now
-    save_checkpoint(run_dir, state())
-    progress.close()
-    p['wall_time_s'] = time.time() - wall0
-    p['unconverged_steps'] = getattr(O.engines[-1], 'nUnconverged', 0)
-    with open(os.path.join(run_dir, 'run.json'), 'w') as f:
-        json.dump(p, f, indent=1)
-    return p
+    def _resume_unit(self, seq, unit, info):
+        meta = info['meta']
+        data = runstate.read(os.path.join(unit, 'state.npz'))
+        births = dict(zip(runstate.extra(data, 'birth_id').tolist(), runstate.extra(data, 'birth_time').tolist()))
+        near = runstate.extra(data, 'near').tolist()
+        scene = os.path.join(unit, 'scene.yade.gz')
+        if meta.get('plugin_digest') == runstate.plugin_digest() and os.path.exists(scene):
+            O.load(scene)
+            self.clock.t0, self.clock.i0 = meta['time_offset'], meta['iter_offset']
+            self.resumed_from = 'checkpoint %d, YADE archive: bit-identical continuation' % seq
+        else:
+            self.rebuild(data)
+            self.resumed_from = ('checkpoint %d, rebuilt from state.npz: written by plugin %s, this is %s; the same '
+                                 'physical state, not bit-identical to an uninterrupted run'
+                                 % (seq, str(meta.get('plugin_digest'))[:12], runstate.plugin_digest()[:12]))
+        if abs(self.clock.time() - meta['time']) > 1e-9 or self.clock.iter() != meta['iter']:
+            raise CheckpointError('checkpoint %d is inconsistent: its scene is at t=%r, step %d, its record at t=%r, step %d'
+                                  % (seq, self.clock.time(), self.clock.iter(), meta['time'], meta['iter']))
+        self._restore_counters(meta, births, near)
+        integ = O.engines[-1]
+        if hasattr(integ, 'nUnconverged'):
+            integ.nUnconverged = int(meta.get('n_unconverged', 0))
+
+    def _resume_release_1(self):
+        """Checkpoints of the first release (``checkpoint.yade.gz`` + ``checkpoint.json``)."""
+        try:
+            with open(os.path.join(self.run_dir, 'checkpoint.json')) as f:
+                state = json.load(f)
+        except ValueError as e:
+            raise CheckpointError('first-release checkpoint %s/checkpoint.json is damaged (%s); it has no older copy'
+                                  % (self.run_dir, e)) from e
+        O.load(os.path.join(self.run_dir, 'checkpoint.yade.gz'))
+        meta = dict(rng=state['rng'], created=state['created'], snaps=state['snaps'])
+        self._restore_counters(meta, {int(k): v for k, v in state['births'].items()}, [])
+        self.resumed_from = 'first-release checkpoint (checkpoint.yade.gz)'
+
+    def rebuild(self, data):
+        """The scene again from a run state, by the code that builds a new run: floor and engines
+        (:func:`build_scene`), grains (:func:`add_grain`), then positions, velocities and contacts
+        with their warm-start impulses (:mod:`yadecd.runstate`)."""
+        p = self.p
+        ids, kind = data['body_id'], data['body_kind']
+        n_paving = int(p['n_paving'])
+        if len(ids) < n_paving + 1 or kind[0] != 0 or not (kind[1:] == 1).all():
+            raise runstate.RunStateError('run state does not hold a pile scene (a wall, then spheres)')
+        floor = np.column_stack([data['pos'][1:n_paving + 1, :2], data['radius'][1:n_paving + 1]])
+        build_scene(p, floor=floor)
+        for x, r in zip(data['pos'][n_paving + 1:], data['radius'][n_paving + 1:]):
+            add_grain(x[0], x[1], x[2], r)
+        runstate.restore_bodies(data)
+        restored, skipped = runstate.restore_contacts(data)
+        self.clock.t0, self.clock.i0 = float(data['time']), int(data['iter'])
+        self.log('rebuilt from state.npz: %d bodies, %d contacts with their impulses%s'
+                 % (len(ids), restored, ', %d pairs no longer in reach' % skipped if skipped else ''))
+
+    def _truncate_progress(self):
+        """Drop progress lines written after the checkpoint resumed from (they will be redone)."""
+        path = os.path.join(self.run_dir, 'progress.csv')
+        if not os.path.exists(path):
+            return
+        with open(path) as f:
+            lines = f.readlines()
+        t = self.clock.time() + 0.5 * self.p['dt']
+        keep = lines[:1] + [ln for ln in lines[1:] if ln.count(',') >= 5 and _float(ln.split(',')[0]) <= t]
+        with open(path + '.tmp', 'w') as f:
+            f.writelines(keep)
+        os.replace(path + '.tmp', path)
+
+    # ------------------------------------------------------------------ checkpoints
+    def checkpoint(self):
+        """Write one checkpoint unit (between steps, never from inside O.run)."""
+        t, it = self.clock.time(), self.clock.iter()
+        bid = sorted(self.births)
+        extra = dict(birth_id=np.array(bid, dtype=np.int64), birth_time=np.array([self.births[b] for b in bid]),
+                     near=np.array(self.feeder.near, dtype=np.int64))
+        meta = dict(time=t, iter=it, time_offset=self.clock.t0, iter_offset=self.clock.i0,
+                    plugin_digest=runstate.plugin_digest(), yade_version=runstate.yade_version(),
+                    rng=self.rng.bit_generator.state, created=self.feeder.count, snaps=sorted(self.done_snaps),
+                    n_unconverged=int(getattr(O.engines[-1], 'nUnconverged', 0)))
+        self.store.write({'state.npz': lambda path: runstate.capture(path, t, it, extra),
+                          'scene.yade.gz': lambda path: O.save(path)}, meta)
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, t_stop=None):
+        """Run to ``t_stop`` (default: the end of the run, or the run's stop_time), with
+        creations, snapshots, progress lines and checkpoints; returns the parameter dict."""
+        p, clock, feeder = self.p, self.clock, self.feeder
+        period = max(1, int(round(1 / (p['rate'] * p['dt']))))  # steps between creations
+        t_end = p['n_grains'] * period * p['dt'] + p['relax']
+        t_stop = min(t_end, t_stop or p['stop_time'] or t_end)
+        snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in self.done_snaps]
+        wall0, sim0 = time.time(), clock.time()
+        last_ck = last_log = time.time()
+        progress = open(os.path.join(self.run_dir, 'progress.csv'), 'a')
+        if progress.tell() == 0:
+            progress.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
+        while clock.time() < t_stop - 0.5 * p['dt']:
+            if feeder.count < p['n_grains'] and clock.iter() % period == 0:
+                feeder.create()
+            steps = period - clock.iter() % period
+            if snaps:
+                steps = min(steps, max(1, int(round((snaps[0] - clock.time()) / p['dt']))))
+            steps = min(steps, max(1, int(round((t_stop - clock.time()) / p['dt']))))
+            O.run(steps, True)
+            t = clock.time()
+            if snaps and t >= snaps[0] - 0.5 * p['dt']:
+                tag = '%.3f' % snaps.pop(0)
+                snapshot(os.path.join(self.run_dir, 'snap_%08.3f.npz' % t), self.births, p, t)
+                if p['vtk']:
+                    from yade import export
+                    export.VTKExporter(os.path.join(self.run_dir, 'vtk_%08.3f' % t)).exportSpheres(what=dict(vel='b.state.vel'))
+                self.done_snaps.add(tag)
+            now = time.time()
+            if now - last_log > 10 or t >= t_stop - 0.5 * p['dt']:
+                rate = (t - sim0) / max(now - wall0, 1e-9)
+                eta = (t_end - t) / rate if rate > 0 else float('inf')
+                contacts, sweeps, residual = solver_stats()
+                self.log('t=%7.3f s  grains %6d/%d  contacts %6d  sweeps %4d  residual %.1e  %.3f sim-s/s  ETA %s'
+                         % (t, feeder.count, p['n_grains'], contacts, sweeps, residual, rate,
+                            time.strftime('%H:%M:%S', time.gmtime(eta)) if eta < 1e7 else '?'))
+                progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (t, feeder.count, contacts, sweeps, residual, now - wall0))
+                progress.flush()
+                last_log = now
+            if now - last_ck > p['checkpoint_every']:
+                self.checkpoint()
+                last_ck = time.time()
+        self.checkpoint()
+        progress.close()
+        p['wall_time_s'] = time.time() - wall0   # this segment's (a resumed run: since the resume)
+        p['finished'] = clock.time() >= t_end - 0.5 * p['dt']
+        p['unconverged_steps'] = getattr(O.engines[-1], 'nUnconverged', 0)
+        _write_json(os.path.join(self.run_dir, 'run.json'), p)
+        return p
+
+
+def _float(text):
+    try:
+        return float(text)
+    except ValueError:
+        return float('inf')
+
+
+def _write_json(path, data):
+    with open(path + '.tmp', 'w') as f:
+        json.dump(data, f, indent=1)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(path + '.tmp', path)
+
+
+def latest_scene(run_dir):
+    """Path of YADE's archive in the run's newest valid checkpoint (first-release runs: their
+    ``checkpoint.yade.gz``), for tools that load a run's state with ``O.load``."""
+    latest = CheckpointStore(run_dir).latest()
+    if latest is not None:
+        return os.path.join(latest[1], 'scene.yade.gz')
+    legacy = os.path.join(run_dir, 'checkpoint.yade.gz')
+    if os.path.exists(legacy):
+        return legacy
+    raise FileNotFoundError('%s holds no checkpoint' % run_dir)
+
+
+def has_run(run_dir):
+    """Whether ``run_dir`` holds a pile run (its run.json, or checkpoints)."""
+    return os.path.exists(os.path.join(run_dir, 'run.json')) or has_checkpoint(run_dir)
+
+
+def clear_run(run_dir, keep=()):
+    """Remove a run's own files (run.json, progress, checkpoints, snapshots, VTK) and nothing else."""
+    import shutil
+    if not os.path.isdir(run_dir):
+        return
+    for name in os.listdir(run_dir):
+        path = os.path.join(run_dir, name)
+        if name in keep:
+            continue
+        if name in RUN_FILES or name.startswith(('snap_', 'vtk_')) or name.endswith('.tmp'):
+            if os.path.isdir(path):
+                shutil.rmtree(path)
+            else:
+                os.remove(path)
+        elif name == 'ckpt':
+            shutil.rmtree(path)
+
+
+def run(run_dir, resume=False, log=print, overwrite=False, **overrides):
+    """Build (or resume) a pile in ``run_dir``; returns the run's parameter dict.
+
+    Every check happens before the first step: bad parameters (ValueError), an existing run
+    without ``resume`` or ``overwrite`` (FileExistsError), options that differ from the run being
+    resumed (ValueError), an unwritable or too-full directory (CheckpointError). Progress lines
+    give simulated time, grains, contacts, Gauss–Seidel sweeps and residual of the last step, the
+    wall-clock rate and the ETA. Snapshots go to ``snap_<t>.npz``; checkpoints to ``ckpt/``."""
+    if resume:
+        return PileRun.resume(run_dir, overrides, log).advance()
+    r = PileRun.start(run_dir, overrides, log, overwrite=overwrite)
+    return r.advance()
