@@ -75,7 +75,7 @@ def main(argv=None):
         while time.time() - t0 < a.hours * 3600 and proc.poll() is None:
             t_sim, grains, contacts = last_progress(run_dir)
             rows.append((time.time() - t0, rss_mb(proc.pid), t_sim, grains, contacts))
-            print('soak: %6.0f s  RSS %7.1f MB  t=%.3f s  contacts %d' % rows[-1][:3] + (contacts,), flush=True)
+            print('soak: %6.0f s  RSS %7.1f MB  t=%.3f s  contacts %d' % (rows[-1][:3] + (contacts,)), flush=True)
             time.sleep(a.every)
     finally:
         if proc.poll() is None:
