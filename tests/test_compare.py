@@ -25,7 +25,6 @@ _spec.loader.exec_module(compare)
 
 G = 9.81
 # the μ = 0 residual bug of earlier builds: residual of r = 0 against a separating velocity ≠ 0
-MU0_BUG = ContactDynamicsIntegrator.naturalMapResidual(Vector3(0, 0, 0), Vector3(6, 0, 0), 0.0, 1.0).norm() > 0
 
 
 def floor_error(ids, m):
@@ -111,8 +110,6 @@ class TestCompareCDFailures(unittest.TestCase):
         self.assertAlmostEqual(s.pos[2], sc['r'], delta=1e-6 * sc['r'])
         self.assertLess(abs(s.vel[2]), 1e-9)
 
-    @unittest.skipIf(MU0_BUG, 'the installed plugin has the μ = 0 residual bug (projectOnCone accepted z_N < 0 '
-                     'when μ = 0; fixed in pkg/cd/CDLocalSolver.hpp): reinstall the plugin to run this test')
     def test_frictionless_gap_contact_converges(self):
         """With μ = 0 an open gap contact must not block convergence: the natural-map residual
         of r = 0 with a separating velocity is 0, and a step with a frictionless resting pair

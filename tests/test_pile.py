@@ -72,7 +72,7 @@ class TestTinyPile(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.mkdtemp(prefix='cd-pile-')
         cls.run_dir = os.path.join(cls.tmp, 'run')
-        args = dict(n_grains=60, relax=0.1, snap_every=0.2, seed=3, log=lambda s: None)
+        args = dict(n_grains=60, relax=0.6, snap_every=0.3, seed=3, log=lambda s: None)
         pile.run(cls.run_dir, stop_time=0.15, **args)
         cls.stopped_at = O.time
         pile.run(cls.run_dir, resume=True, log=lambda s: None)
@@ -105,6 +105,23 @@ class TestTinyPile(unittest.TestCase):
         self.assertAlmostEqual(self.stopped_at, 0.15, delta=1e-9)
         self.assertEqual(self.resumed, self.straight)
 
+    def test_pile_at_rest_carries_its_weight(self):
+        """0.6 s after the last grain the pile is at rest (CD holds it exactly: speeds at round-off)
+        and its supports (paving grains and the plane under them) carry exactly its weight: the sum
+        of the vertical contact forces on them equals Σ m g to round-off."""
+        snaps = sorted(f for f in os.listdir(self.straight_dir) if f.startswith('snap_'))
+        s = np.load(os.path.join(self.straight_dir, snaps[-1]))
+        self.assertAlmostEqual(float(s['time']), 0.9, delta=1e-9)
+        free = ~s['fixed']
+        self.assertLess(np.abs(s['vel'][free]).max(), 1e-9)
+        support = set(s['ids'][s['fixed']].tolist()) | {0}           # paving grains and the wall (id 0)
+        load = 0.0
+        for a, b, f in zip(s['c_id1'], s['c_id2'], s['c_force']):
+            if (a in support) != (b in support):
+                load += -f[2] if b in support else f[2]             # c_force acts on body 2
+        weight = (s['rho'] * 4 / 3 * math.pi * s['radius'][free] ** 3).sum() * s['g']
+        self.assertAlmostEqual(load / weight, 1.0, delta=1e-9)
+
     def test_analyses_and_figures(self):
         out = os.path.join(self.tmp, 'fig')
         summary = load_figures().analyse(self.straight_dir, out)
@@ -118,6 +135,16 @@ class TestTinyPile(unittest.TestCase):
             self.assertTrue(any(f.startswith('fig%d' % k) and f.endswith('.png') for f in os.listdir(out)), 'figure %d' % k)
         for key in ('slope_deg', 'H_m', 'p_center_Pa', 'hydrostatic_Pa', 'floor_load_over_weight'):
             self.assertIn(key, saved)
+        # a 60-grain pile is about two grains high: no straight flank, and the summary says why
+        self.assertIsNone(saved['slope_deg'])
+        self.assertIn('no straight flank', saved['slope_note'])
+        self.assertGreater(saved['H_over_d'], 1.5)
+        self.assertLess(saved['H_over_d'], 3.0)
+        # the paving carries the weight less what reaches the plane between paving grains
+        self.assertGreater(saved['floor_load_over_weight'], 0.8)
+        self.assertLessEqual(saved['floor_load_over_weight'], 1.0 + 1e-9)
+        self.assertEqual(saved['n_pile_grains'], 60)
+        self.assertGreater(saved['p_center_Pa'], 0)
         # pile grains: every grain but those in flight at the snapshot (no loaded contact), and
         # a grain in flight must be moving (a grain at rest in the pile is never left out)
         snaps = sorted(f for f in os.listdir(self.straight_dir) if f.startswith('snap_'))
