@@ -70,6 +70,11 @@ class TestCheckpointStore(unittest.TestCase):
                 os.remove(path)
             self.assertEqual(self.read_state()[:2], (1, 'state 1'), damage)
             self.assertIn('checkpoint 2 skipped: scene.bin', self.store.messages[0])
+            self.assertIn('moved aside to 000002.damaged', self.store.messages[0])
+            self.assertTrue(os.path.isdir(os.path.join(self.store.root, '000002.damaged')))
+            self.read_state()
+            self.assertEqual(self.store.messages, [], 'a damaged unit is reported once')
+            self.assertEqual(self.store.write({'scene.bin': lambda p: open(p, 'w').write('state 3')}), 2)
             for n in os.listdir(self.store.root):          # start again for the next kind of damage
                 p = os.path.join(self.store.root, n)
                 (os.remove if os.path.isfile(p) else __import__('shutil').rmtree)(p)

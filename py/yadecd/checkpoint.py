@@ -5,8 +5,9 @@ state (written by callables the caller gives) and ``meta.json`` with their SHA-2
 written under a temporary name, flushed, renamed, read back and verified; only then does the
 pointer ``<run>/ckpt/current.json`` switch to it. The previous good checkpoint is kept until the
 next one is verified (``keep`` units are kept). On reading, a damaged or truncated unit (a digest
-that does not match, a missing file, unreadable metadata) is reported and the next older one is
-used; a damaged pointer is replaced by a scan of the units.
+that does not match, a missing file, unreadable metadata) is reported, moved aside as
+``<seq>.damaged`` (kept for inspection, never read again) and the next older one is used; a
+damaged pointer is replaced by a scan of the units.
 
 A kill at any moment leaves either the old pointer (the new unit is a ``.tmp`` directory or an
 unreferenced unit, both ignored or reused) or the new one (the unit is complete and verified).
@@ -184,8 +185,20 @@ class CheckpointStore:
             unit = os.path.join(self.root, '%06d' % seq)
             problem = self._verify(unit)
             if not problem:
+                if seq != current:             # the pointer named a damaged or missing unit: repair it
+                    try:
+                        _write_json_atomic(os.path.join(self.root, POINTER), {'current': seq, 'previous': None})
+                    except OSError:
+                        pass
                 with open(os.path.join(unit, 'meta.json')) as f:
                     return seq, unit, json.load(f)
+            aside = unit + '.damaged'          # kept for inspection, never read again
+            try:
+                shutil.rmtree(aside, ignore_errors=True)
+                os.replace(unit, aside)
+                problem += ' (moved aside to %s)' % os.path.basename(aside)
+            except OSError:
+                pass
             self.messages.append('checkpoint %d skipped: %s' % (seq, problem))
         if units:
             raise CheckpointError('no valid checkpoint in %s: %s' % (self.root, '; '.join(self.messages)))

@@ -145,10 +145,14 @@ class KillCampaign:
             logf.close()
             after = units(self.run_dir)
             newest = after[-1][1] if after else None
+            # work lost: computing time of this start after its newest verified checkpoint (or,
+            # when it wrote none, all of this start, YADE's start-up included)
+            own = newest is not None and newest['written_unix'] > t0
             event = dict(kill=k, killed=True, wall_after_start_s=t_kill - t0, during_checkpoint_write=in_write,
                          units_before=len(before), units_after=len(after),
                          newest_unit_time_s=newest['meta']['time'] if newest else None,
-                         newest_unit_age_s=(t_kill - newest['written_unix']) if newest else None)
+                         checkpoint_written_by_this_start=own,
+                         lost_s=t_kill - (newest['written_unix'] if own else t0))
             if k in self.damage_after and after:
                 name, how = self.damage_after[k]
                 seq = after[-1][0]
