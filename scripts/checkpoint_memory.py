@@ -6,8 +6,8 @@ Resumes the pile run in RUN_DIR (a copy is made: the run itself is not touched),
 ``--checkpoints`` checkpoints in a row without stepping, then runs ``--steps`` steps without
 checkpoints, sampling this process's resident memory (VmRSS) after every checkpoint and every 50
 steps. A leak in the checkpoint path grows memory in the first phase, one in the solver in the
-second. Prints the growth per checkpoint and per 1000 steps (least-squares slopes over each
-phase's second half) and writes the samples to --out.
+second. Prints the wall time and size of one checkpoint, the growth per checkpoint and per 1000
+steps (least-squares slopes over each phase's second half) and writes the samples to --out.
 """
 import argparse
 import csv
@@ -15,6 +15,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 
 import numpy as np
 
@@ -44,9 +45,13 @@ try:
     shutil.copytree(a.run_dir, work, ignore=shutil.ignore_patterns('snap_*', 'vtk_*', '*.log', 'log.txt'))
     run = pile.PileRun.resume(work, {}, log=lambda s: None)
     rows = [('start', 0, rss_mb())]
+    t0 = time.perf_counter()
     for k in range(a.checkpoints):
         run.checkpoint()
         rows.append(('checkpoint', k + 1, rss_mb()))
+    per_checkpoint = (time.perf_counter() - t0) / a.checkpoints
+    unit = run.store.latest()[1]
+    unit_bytes = sum(os.path.getsize(os.path.join(unit, n)) for n in os.listdir(unit))
     for k in range(a.steps // 50):
         O.run(50, True)
         rows.append(('steps', 50 * (k + 1), rss_mb()))
@@ -62,7 +67,8 @@ def slope(phase, scale):
 
 ck, ck0, ck1 = slope('checkpoint', 1.0)
 st, st0, st1 = slope('steps', 1000.0)
-print('checkpoint_memory: %d bodies, %d contacts' % (len(O.bodies), O.interactions.countReal()))
+print('checkpoint_memory: %d bodies, %d contacts; one checkpoint %.3f s of wall time, %.2f MB on disk'
+      % (len(O.bodies), O.interactions.countReal(), per_checkpoint, unit_bytes / 1e6))
 print('checkpoint_memory: start %.1f MB; after %d checkpoints %.1f MB (second half: %+.3f MB per checkpoint)'
       % (rows[0][2], a.checkpoints, ck1, ck))
 print('checkpoint_memory: then after %d steps %.1f MB (second half: %+.3f MB per 1000 steps)' % (a.steps, st1, st))

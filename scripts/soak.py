@@ -48,7 +48,13 @@ def main(argv=None):
     ap.add_argument('--out', default='out/soak')
     ap.add_argument('--hours', type=float, default=1.0)
     ap.add_argument('--every', type=float, default=15.0, help='sampling period [s]')
+    ap.add_argument('--plot-only', action='store_true', help='redraw soak_rss.png from --out/soak.csv and soak.json')
     a = ap.parse_args(argv)
+    if a.plot_only:
+        data = np.loadtxt(os.path.join(a.out, 'soak.csv'), delimiter=',', skiprows=1)
+        with open(os.path.join(a.out, 'soak.json')) as f:
+            plot(data, json.load(f), os.path.join(a.out, 'soak_rss.png'))
+        return 0
     if not os.path.exists(os.path.join(a.source, 'run.json')):
         ap.error('%s holds no pile run' % a.source)
     if os.path.exists(a.out):
@@ -113,6 +119,12 @@ def plot(data, s, path):
     ax.plot(data[:, 0] / 60, data[:, 1], '.-', ms=3, lw=0.8, label='resident memory (VmRSS)')
     ax.set_xlabel('wall time [min]')
     ax.set_ylabel('RSS [MB]')
+    settled = data[data[:, 0] >= 120, 1]       # after YADE's start-up and the first checkpoints
+    if len(settled):
+        lo, hi = settled.min(), settled.max()
+        ax.set_ylim(lo - max(5.0, hi - lo), hi + max(5.0, hi - lo))
+        ax.text(0.01, 0.03, 'first 2 min (start-up, first checkpoints): 0 to %.0f MB, off scale' % settled[0],
+                transform=ax.transAxes, fontsize=7)
     title = 'Soak: %d-grain pile relaxing, checkpoint every 60 s' % (data[-1, 3] or 0)
     if 'growth_mb_per_hour' in s:
         title += '\ngrowth after 5 min: %+.2f MB/h (scatter %.2f MB)' % (s['growth_mb_per_hour'], s['scatter_mb'])

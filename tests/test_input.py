@@ -99,6 +99,25 @@ class TestBadInput(unittest.TestCase):
         yadecd.integrator().damping = 0.2
         self.assertStepFails(ValueError, 'damping')
 
+    def test_inherited_attributes_not_honoured(self):
+        """NewtonIntegrator's attributes that Contact Dynamics ignores are refused by name when
+        set away from their defaults, before anything moves; at their defaults a step runs."""
+        cases = (('mask', 1, 'mask=1'),
+                 ('exactAsphericalRot', False, 'exactAsphericalRot'), ('normalizeEvery', 10, 'normalizeEvery=10'),
+                 ('niterOmelyan1998', 5, 'niterOmelyan1998=5'), ('kinSplit', True, 'kinSplit'),
+                 ('dampGravity', False, 'dampGravity'))
+        for name, value, word in cases:
+            with self.subTest(attribute=name):
+                scenes.column(2)
+                setattr(yadecd.integrator(), name, value)
+                self.assertStepFails(ValueError, word, "NewtonIntegrator's default")
+        scenes.column(2)
+        cd = yadecd.integrator()
+        cd.rotAlgorithm = 'Omelyan1998'
+        self.assertStepFails(ValueError, 'rotAlgorithm')
+        scenes.column(2)
+        O.step()
+
     def test_recovers_after_fix(self):
         """After an error is fixed the simulation continues normally."""
         sc = scenes.column(2)

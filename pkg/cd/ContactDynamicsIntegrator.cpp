@@ -188,6 +188,26 @@ void ContactDynamicsIntegrator::action()
 	timingDeltas->checkpoint("storeResults");
 }
 
+// Attributes inherited from NewtonIntegrator that Contact Dynamics does not honour: a non-default
+// value would be ignored without a word, so it is refused by name (before anything moves).
+void ContactDynamicsIntegrator::checkInheritedAttributes() const
+{
+	auto refuse = [](const string& what, const string& why) {
+		throw std::invalid_argument("ContactDynamicsIntegrator." + what + ": " + why + " Leave it at NewtonIntegrator's default.");
+	};
+	const string rotation = "Contact Dynamics turns bodies by their rotation vector (q_m = q_i + h/2·w); the aspherical rotation options have no effect.";
+	if (mask != -1) refuse("mask=" + std::to_string(mask), "body masks are not honoured: every dynamic body moves.");
+#ifdef YADE_BODY_CALLBACK // only YADE builds with body callbacks have the attribute
+	if (!callbacks.empty()) refuse("callbacks", "BodyCallbacks are not called by Contact Dynamics.");
+#endif
+	if (!exactAsphericalRot) refuse("exactAsphericalRot=False", rotation);
+	if (rotAlgorithm != RotAlgorithm::delValle2023) refuse("rotAlgorithm", rotation);
+	if (normalizeEvery != 5000) refuse("normalizeEvery=" + std::to_string(normalizeEvery), rotation);
+	if (niterOmelyan1998 != 3) refuse("niterOmelyan1998=" + std::to_string(niterOmelyan1998), rotation);
+	if (kinSplit) refuse("kinSplit=True", "the kinetic energy is tracked as one term (\"kinetic\").");
+	if (!dampGravity) refuse("dampGravity=False", "there is no numerical damping (damping is 0), so it has no effect.");
+}
+
 // Bad input is reported before anything moves.
 void ContactDynamicsIntegrator::checkScene()
 {
@@ -196,6 +216,7 @@ void ContactDynamicsIntegrator::checkScene()
 	if (scene->isPeriodic) throw std::invalid_argument("ContactDynamicsIntegrator: periodic cells are not supported.");
 	if (damping != 0) throw std::invalid_argument("ContactDynamicsIntegrator.damping=" + std::to_string(damping) + ": must be 0 (CD needs no numerical damping).");
 	if (!finite(gravity)) throw std::invalid_argument("ContactDynamicsIntegrator.gravity is not finite.");
+	checkInheritedAttributes();
 	postLoad(*this);
 	scene->forces.sync();
 
