@@ -1,7 +1,7 @@
 // Contact Dynamics plugin for YADE: Moreau's time-stepping integrator (see the header for the
 // architecture, the contact law and the sign conventions).
 #include "ContactDynamicsIntegrator.hpp"
-#include "CDLocalSolver.hpp"
+#include "core/LocalSolver.hpp"
 #include "CDPhys.hpp"
 #include <core/Clump.hpp>
 #include <core/Scene.hpp>

@@ -1,4 +1,8 @@
-// Contact Dynamics plugin for YADE: the single-contact (local) Signorini–Coulomb problem.
+// Contact Dynamics solver core: the single-contact (local) Signorini–Coulomb problem.
+//
+// pkg/cd/core/ holds the parts of the solver that need nothing from YADE but its Real and Eigen
+// types (lib/base/Math.hpp): they never touch YADE objects, and are tested without running YADE
+// by tests/core/ (the cd_core_tests target of the top-level CMake).
 //
 // Notation (Moreau; Jean; Siconos `fc3d`): every vector is written in the contact's local frame
 // (n, t1, t2), normal component first. `r` is the contact impulse exerted on body 2 [N·s],
@@ -17,6 +21,8 @@
 #pragma once
 
 #include <lib/base/Math.hpp>
+
+#include <limits>
 
 namespace yade {
 namespace cd {
@@ -43,6 +49,53 @@ namespace cd {
 		Vector3r Uhat = U;
 		Uhat[0] += mu * math::sqrt(U[1] * U[1] + U[2] * U[2]);
 		return (r - projectOnCone(r - rho * Uhat, mu)) / rho;
+	}
+
+	/*! The sliding branch found by its direction, for any SPD W. With r_T along the unit vector
+	 *  d = (cos θ, sin θ) and v = (1, μ d): r = r_N v, and U_N = 0 gives r_N = −b_N / (W v)_N.
+	 *  Scaled by the positive (W v)_N, the tangential velocity is V(θ) = −b_N (W v)_T + (W v)_N b_T,
+	 *  a trigonometric polynomial of degree 2 without poles; the branch holds where V × d = 0,
+	 *  V·d ≤ 0 (slip opposite to r_T) and (W v)_N > 0 (r_N > 0). The at most four roots are
+	 *  bracketed on `samples` angles and bisected to rounding; the valid one with the smallest
+	 *  law residual is returned (false: none). Used when the coupling iteration of solveLocal
+	 *  does not reach the law. */
+	inline bool solveSlidingByAngle(const Matrix3r& W, const Vector3r& b, Real mu, Vector3r& r, int samples = 360)
+	{
+		const Real pi  = 4 * math::atan(Real(1));
+		auto       cut = [&](Real th, Real& den, Vector2r& V) { // V × d at θ
+			const Real     c = math::cos(th), s = math::sin(th);
+			const Vector3r Wv = W * Vector3r(1, mu * c, mu * s);
+			den               = Wv[0];
+			V                 = Vector2r(-b[0] * Wv[1] + den * b[1], -b[0] * Wv[2] + den * b[2]);
+			return V[0] * s - V[1] * c;
+		};
+		bool     found = false;
+		Real     best  = std::numeric_limits<Real>::infinity();
+		Real     den;
+		Vector2r V;
+		Real     lo = 0, glo = cut(lo, den, V);
+		for (int k = 1; k <= samples; ++k) {
+			Real       hi = 2 * pi * k / samples;
+			const Real ghi = cut(hi, den, V), gnext = ghi, next = hi;
+			if (glo == 0 || (glo < 0) != (ghi < 0)) {
+				Real a = lo, ga = glo;
+				for (int it = 0; it < 200 && ga != 0 && hi - a > 4 * std::numeric_limits<Real>::epsilon(); ++it) {
+					const Real mid = 0.5 * (a + hi), gm = cut(mid, den, V);
+					if ((gm < 0) == (ga < 0)) a = mid, ga = gm;
+					else hi = mid;
+				}
+				cut(a, den, V);
+				const Real c = math::cos(a), s = math::sin(a);
+				if (den > 0 && V[0] * c + V[1] * s <= 0) {
+					const Real     rn = -b[0] / den;
+					const Vector3r cand(rn, mu * rn * c, mu * rn * s);
+					const Real     err = naturalMapResidual(cand, W * cand + b, mu, 1 / W(0, 0)).norm();
+					if (err < best) best = err, r = cand, found = true;
+				}
+			}
+			lo = next, glo = gnext;
+		}
+		return found;
 	}
 
 	/*! Solve the local problem exactly for r (see the file header); returns the status.
@@ -82,6 +135,17 @@ namespace cd {
 			if (decoupled || dr <= 1e-14 * (math::abs(rn) + rt.norm())) break;
 		}
 		r = Vector3r(rn, rt[0], rt[1]);
+		if (!decoupled) {
+			// strong coupling can stall or cycle the fixed point (measured: about 1 % of random
+			// SPD blocks): then the branch is found by its direction
+			const Real err = naturalMapResidual(r, W * r + b, mu, 1 / W(0, 0)).norm();
+			Vector3r   byAngle;
+			if (err > 1e-13 * b.norm() && solveSlidingByAngle(W, b, mu, byAngle)
+			    && naturalMapResidual(byAngle, W * byAngle + b, mu, 1 / W(0, 0)).norm() < err) {
+				r = byAngle;
+				return ContactStatus::Sliding;
+			}
+		}
 		return rn > 0 ? ContactStatus::Sliding : ContactStatus::Open;
 	}
 
