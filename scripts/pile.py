@@ -18,6 +18,7 @@ Then run ``scripts/pile_figures.py DIR``.
 import argparse
 import errno
 import os
+import signal
 import sys
 
 from yadecd import pile
@@ -58,6 +59,11 @@ except (ValueError, OSError, pile.CheckpointError, pile.runstate.RunStateError) 
     sys.stderr.write('pile.py: error: %s\n' % message)
     sys.stderr.flush()
     os._exit(2)
+if p.get('stopped_by'):
+    # stopped by SIGTERM/SIGINT after a checkpoint: the conventional 128 + signal number
+    print('pile stopped by %s after a checkpoint; continue with --resume (run directory %s)' % (p['stopped_by'], out))
+    sys.stdout.flush()
+    os._exit(128 + int(getattr(signal, p['stopped_by'])))
 print('pile %s: %d grains in %.0f s wall time; run directory %s'
       % ('done' if p['finished'] else 'stopped at t=%.3f s' % p['stop_time'], p['n_grains'], p['wall_time_s'], out))
 if os.environ.get('YADE_BATCH'):

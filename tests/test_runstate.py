@@ -288,6 +288,37 @@ class TestKills(unittest.TestCase):
             self.assertEqual(faults.compare_states(faults.final_state(run_dir), ref), '')
 
 
+class TestStopSignal(unittest.TestCase):
+    """SIGTERM (a shutdown) or Ctrl-C stops a run with a checkpoint at the next chunk of steps:
+    exit code 143, a message saying how to continue, and the resumed run ends bit-identical."""
+
+    def test_sigterm(self):
+        import signal
+        import time
+        with tempfile.TemporaryDirectory() as tmp:
+            ref = reference_end(tmp)
+            run_dir = os.path.join(tmp, 'stopped')
+            proc = subprocess.Popen(faults.pile_command(run_dir, KILL_RUN), stdout=subprocess.PIPE,
+                                    stderr=subprocess.STDOUT, text=True, start_new_session=True)
+            t0 = time.time()
+            while not faults.units(run_dir) and proc.poll() is None and time.time() - t0 < 300:
+                time.sleep(0.05)
+            time.sleep(0.2)
+            proc.send_signal(signal.SIGTERM)
+            out, _ = proc.communicate(timeout=300)
+            self.assertEqual(proc.returncode, 128 + signal.SIGTERM, out)
+            self.assertIn('stopped by SIGTERM', out)
+            self.assertIn('continue with --resume', out)
+            with open(os.path.join(run_dir, 'run.json')) as f:
+                p = json.load(f)
+            self.assertEqual((p['stopped_by'], p['finished']), ('SIGTERM', False))
+            stop_time = float(out.split('stopped by SIGTERM at t=')[1].split()[0])
+            self.assertAlmostEqual(faults.units(run_dir)[-1][1]['meta']['time'], stop_time, delta=1e-4)
+            proc = subprocess.run(faults.pile_command(run_dir, resume=True), capture_output=True, text=True, timeout=600)
+            self.assertEqual(proc.returncode, 0, proc.stdout + proc.stderr)
+            self.assertEqual(faults.compare_states(faults.final_state(run_dir), ref), '')
+
+
 @unittest.skipUnless(os.geteuid() == 0, 'mounting a small tmpfs needs root (the set-up runs as root)')
 class TestFullDisk(unittest.TestCase):
     """The disk fills mid-run: the run stops with a clear error, its last checkpoint intact;

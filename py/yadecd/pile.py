@@ -23,6 +23,7 @@ from, see :class:`PileRun` and docs/reliability.md) and ``progress.csv``.
 import json
 import math
 import os
+import signal
 import time
 
 import numpy as np
@@ -645,7 +646,15 @@ class PileRun:
     # ------------------------------------------------------------------ stepping
     def advance(self, t_stop=None):
         """Run to ``t_stop`` (default: the end of the run, or the run's stop_time), with
-        creations, snapshots, progress lines and checkpoints; returns the parameter dict."""
+        creations, snapshots, progress lines and checkpoints; returns the parameter dict.
+
+        SIGTERM and SIGINT (a shutdown, Ctrl-C) stop the run at the end of the current chunk of
+        steps with a checkpoint, so that nothing is lost: the dict then has ``stopped_by`` (the
+        signal's name) and ``finished`` False; ``--resume`` continues bit for bit."""
+        with _StopSignals() as stop:
+            return self._advance(t_stop, stop)
+
+    def _advance(self, t_stop, stop):
         p, clock, feeder = self.p, self.clock, self.feeder
         period = max(1, int(round(1 / (p['rate'] * p['dt']))))  # steps between creations
         t_end = p['n_grains'] * period * p['dt'] + p['relax']
@@ -656,7 +665,7 @@ class PileRun:
         progress = open(os.path.join(self.run_dir, 'progress.csv'), 'a')
         if progress.tell() == 0:
             progress.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
-        while clock.time() < t_stop - 0.5 * p['dt']:
+        while clock.time() < t_stop - 0.5 * p['dt'] and not stop.name:
             if feeder.count < p['n_grains'] and clock.iter() % period == 0:
                 feeder.create()
             steps = period - clock.iter() % period
@@ -691,8 +700,38 @@ class PileRun:
         p['wall_time_s'] = time.time() - wall0   # this segment's (a resumed run: since the resume)
         p['finished'] = clock.time() >= t_end - 0.5 * p['dt']
         p['unconverged_steps'] = getattr(O.engines[-1], 'nUnconverged', 0)
+        if stop.name:
+            p['stopped_by'] = stop.name
+            self.log('stopped by %s at t=%.4f s with a checkpoint: continue with --resume' % (stop.name, clock.time()))
+        else:
+            p.pop('stopped_by', None)
         _write_json(os.path.join(self.run_dir, 'run.json'), p)
         return p
+
+
+class _StopSignals:
+    """Within the block, SIGTERM and SIGINT only record their name (``.name``): the run loop
+    stops at its next chunk boundary and checkpoints. The previous handlers come back on exit.
+    Only the main thread may set handlers; elsewhere nothing is changed."""
+
+    def __init__(self):
+        self.name, self.old = None, {}
+
+    def _note(self, signum, frame):
+        self.name = signal.Signals(signum).name
+
+    def __enter__(self):
+        try:
+            for s in (signal.SIGTERM, signal.SIGINT):
+                self.old[s] = signal.signal(s, self._note)
+        except ValueError:          # not the main thread
+            self.old = {}
+        return self
+
+    def __exit__(self, *exc):
+        for s, h in self.old.items():
+            signal.signal(s, h)
+        return False
 
 
 def _float(text):
