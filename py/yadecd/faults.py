@@ -160,6 +160,9 @@ class KillCampaign:
                 event['damaged'] = '%s of unit %d (%s)' % (name, seq, how)
                 event['expect_unit'] = after[-2][0] if len(after) >= 2 else None
             self.events.append(event)
+            self.log('faults: kill %d at %.1f s after its start%s; lost %.2f s%s'
+                     % (k + 1, event['wall_after_start_s'], ' (during a checkpoint write)' if in_write else '',
+                        event['lost_s'], '; damaged ' + event['damaged'] if 'damaged' in event else ''))
             resume = os.path.exists(os.path.join(self.run_dir, 'run.json'))
         proc, logf = self._start(resume)
         rc = proc.wait(timeout=timeout)
