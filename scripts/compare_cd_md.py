@@ -27,13 +27,9 @@ import time
 
 # inside yade, __file__ is yade's executable: take the script's path from argv
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))
-import importlib.util  # noqa: E402
-import yadecd  # noqa: E402  (the installed package: engines, scenes)
-# this repository's compare.py, whatever copy (if any) is installed: it defines what is measured
-_spec = importlib.util.spec_from_file_location('yadecd.compare', os.path.join(REPO, 'py', 'yadecd', 'compare.py'))
-compare = importlib.util.module_from_spec(_spec)
-sys.modules['yadecd.compare'] = compare
-_spec.loader.exec_module(compare)
+sys.path.insert(0, os.path.join(REPO, 'py'))   # this repository's yadecd, ahead of the installed copy
+import yadecd  # noqa: E402
+from yadecd import compare  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
 ap.add_argument('--quick', action='store_true', help='tiny subset (< 1 min) into out/compare_quick')

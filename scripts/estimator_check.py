@@ -10,26 +10,14 @@ estimator. Dip: constructed floors with a known D, single piles and ensembles of
 the 95 % intervals and the rate of false dips. Writes a markdown table. numpy only.
 """
 import argparse
-import importlib.util
 import math
 import os
 import sys
 
 import numpy as np
 
-PKG = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py', 'yadecd')
-
-
-def _load(name):
-    key = '_yadecd_' + name
-    if key not in sys.modules:
-        spec = importlib.util.spec_from_file_location(key, os.path.join(PKG, name + '.py'))
-        sys.modules[key] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[key])
-    return sys.modules[key]
-
-
-pa, sy = _load('pile_analysis'), _load('synthetic')
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py'))
+from yadecd import pile_analysis as pa, synthetic as sy  # noqa: E402
 
 FEATURES = [('plain cone', {}), ('rounded cap (1 cm)', dict(cap_radius=0.01)), ('sparse axis', dict(sparse_axis=True)),
             ('foot (3 cm)', dict(foot=True)), ('12 stray grains', dict(strays=12)),

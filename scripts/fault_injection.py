@@ -24,10 +24,8 @@ import time
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(REPO, 'tests'))
-from yadecd_modules import load  # noqa: E402
-
-faults = load('faults')
+sys.path.insert(0, os.path.join(REPO, 'py'))   # the repository's yadecd (imports without YADE)
+from yadecd import faults  # noqa: E402
 
 
 def main(argv=None):

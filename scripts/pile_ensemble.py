@@ -14,24 +14,11 @@ the ensemble statistics (means, spreads, 95 % intervals) and figures. Needs no Y
 ``status`` and ``analyse``; all three work with Debian's /usr/bin/python3.
 """
 import argparse
-import importlib.util
 import os
 import sys
 
 REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
-PKG = os.path.join(REPO, 'py', 'yadecd')
-
-
-def _load(name, filename):
-    """Import a module of py/yadecd from its file (the yadecd package itself needs YADE)."""
-    key = '_yadecd_' + name
-    if key in sys.modules:
-        return sys.modules[key]
-    spec = importlib.util.spec_from_file_location(key, os.path.join(PKG, filename))
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[key] = module
-    spec.loader.exec_module(module)
-    return module
+sys.path.insert(0, os.path.join(REPO, 'py'))   # the repository's yadecd (imports without YADE)
 
 
 def main(argv=None):
@@ -60,7 +47,7 @@ def main(argv=None):
                    help='directory of stored per-run records (e.g. docs/data/ensemble_runs) for runs not in OUT')
     args = p.parse_args(argv)
 
-    ens = _load('ensemble', 'ensemble.py')
+    from yadecd import ensemble as ens
     if args.cmd == 'run':
         try:
             sizes = [int(x) for x in args.sizes.split(',') if x.strip()]
@@ -86,7 +73,7 @@ def main(argv=None):
     if args.cmd == 'status':
         print('\n'.join(ens.status_lines(args.out)))
         return 0
-    stats = _load('pile_ensemble_analysis', 'pile_ensemble_analysis.py')
+    from yadecd import pile_ensemble_analysis as stats
     out = args.figures or os.path.join(args.out, 'analysis')
     summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
                                      records_from=args.records)

@@ -6,37 +6,25 @@
 RUN_DIR holds snap_<time>.npz files (and run.json); a single snapshot file is accepted too.
 Writes fig0..fig7 PNGs and summary.json into DIR (default RUN_DIR/figures) and prints the main
 numbers. Needs numpy and matplotlib only: works with Debian's /usr/bin/python3 and inside YADE
-(``yade -n -x scripts/pile_figures.py RUN_DIR ...``); it never imports yade. The analysis modules
-are loaded from their files in the repository's py/yadecd/, so the yadecd package (whose
-__init__ needs YADE) is not imported.
+(``yade -n -x scripts/pile_figures.py RUN_DIR ...``); it never imports yade (the yadecd package
+imports without YADE; this script uses the repository's copy, py/yadecd).
 """
 import argparse
-import importlib.util
 import os
 import sys
 
 
-def _repo_py_dir():
-    """py/yadecd of the repository this script belongs to (inside YADE ``__file__`` may be
-    YADE's executable, so sys.argv[0] is tried as well)."""
+def _use_repo_package():
+    """Put the repository's py/ first on sys.path (inside YADE ``__file__`` may be YADE's
+    executable, so sys.argv[0] is tried as well)."""
     for candidate in (globals().get('__file__'), sys.argv[0] if sys.argv else None):
         if not candidate:
             continue
-        pkg = os.path.join(os.path.dirname(os.path.abspath(candidate)), '..', 'py', 'yadecd')
-        if os.path.exists(os.path.join(pkg, 'pile_figures.py')):
-            return os.path.normpath(pkg)
+        py = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(candidate)), '..', 'py'))
+        if os.path.exists(os.path.join(py, 'yadecd', 'pile_figures.py')):
+            sys.path.insert(0, py)
+            return
     raise SystemExit('cannot find py/yadecd/pile_figures.py next to this script')
-
-
-def _load(name, path):
-    """Import a module from its file under ``name`` (once)."""
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def parse(argv):
@@ -53,9 +41,8 @@ def parse(argv):
 
 def main(argv=None):
     args = parse(sys.argv[1:] if argv is None else argv)
-    pkg = _repo_py_dir()
-    _load('_yadecd_pile_analysis', os.path.join(pkg, 'pile_analysis.py'))
-    figures = _load('_yadecd_pile_figures', os.path.join(pkg, 'pile_figures.py'))
+    _use_repo_package()
+    from yadecd import pile_figures as figures
     base = args.run if os.path.isdir(args.run) else os.path.dirname(os.path.abspath(args.run))
     out = args.out or os.path.join(base, 'figures')
     s = figures.analyse(args.run, out, epoch=args.epoch, fossil=args.fossil,

@@ -5,6 +5,8 @@ import unittest
 
 # inside yade, __file__ is yade's executable: take the script's path from argv
 here = os.path.dirname(os.path.abspath(sys.argv[0]))
+sys.path.insert(0, here)
+import repo_package  # noqa: E402,F401  (this repository's yadecd first on sys.path)
 args = sys.argv[1:]
 loader = unittest.TestLoader()
 if len(args) >= 2 and args[0] == '-k':

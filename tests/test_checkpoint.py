@@ -10,12 +10,12 @@ import os
 import tempfile
 import unittest
 
-from yadecd_modules import load
+import repo_package  # noqa: F401
+from yadecd import checkpoint as ck
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-ck = load('checkpoint')
 
 
 def text_writer(content):

@@ -4,24 +4,15 @@ What the CD engine must report when it cannot deliver (never a silent wrong answ
 MD builder really builds, and that compare.run() names failures as documented. Fast (a few
 seconds); run inside YADE (``bash tests/run.sh -k Compare``).
 """
-import importlib.util
 import math
-import os
-import sys
 import unittest
 
 from yade import O, Vector3
 from yade.wrapper import NewtonIntegrator, ContactDynamicsIntegrator, Law2_ScGeom_FrictPhys_CundallStrack
 
+import repo_package  # noqa: F401
 import yadecd
-from yadecd import scenes
-
-# this repository's compare.py, whatever copy (if any) is installed (engines and scenes: installed)
-_spec = importlib.util.spec_from_file_location(
-    'yadecd.compare', os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'py', 'yadecd', 'compare.py'))
-compare = importlib.util.module_from_spec(_spec)
-sys.modules['yadecd.compare'] = compare
-_spec.loader.exec_module(compare)
+from yadecd import compare, scenes
 
 G = 9.81
 # the μ = 0 residual bug of earlier builds: residual of r = 0 against a separating velocity ≠ 0

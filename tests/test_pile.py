@@ -9,17 +9,18 @@ import unittest
 
 import numpy as np
 
+import repo_package  # noqa: F401
 from yade import O
 import yadecd.pile as pile
-from yadecd_modules import load
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 
 
 def load_figures():
-    """pile_figures loaded from its file, as the command line does."""
-    return load('pile_figures')
+    """The pile_figures module (as scripts/pile_figures.py uses it)."""
+    from yadecd import pile_figures
+    return pile_figures
 
 
 class TestCreationRule(unittest.TestCase):

@@ -1,6 +1,6 @@
 """Sand-pile analysis (py/yadecd/pile_analysis.py) on constructed snapshots with known answers.
 
-Pure numpy: the module is loaded from its file, so these tests run inside YADE
+Pure numpy: yadecd imports without YADE, so these tests run inside YADE
 (``bash tests/run.sh``) as well as with ``/usr/bin/python3 -m unittest`` from tests/. Every test
 states the formula it checks; "exact" tolerances are 1e-12 relative (round-off only).
 """
@@ -12,12 +12,12 @@ import unittest
 
 import numpy as np
 
-from yadecd_modules import load
+import repo_package  # noqa: F401
+from yadecd import pile_analysis as pa
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-pa = load('pile_analysis')
 
 EXACT = 1e-12
 
@@ -533,7 +533,7 @@ class TestPipeline(unittest.TestCase):
         """Whole pipeline on a lattice pile: every figure and summary.json written; the floor
         load equals the pile weight (sum of column weights, exact to round-off); the slope of
         a staircase cone of 26° lies within a few degrees of 26°."""
-        pf = load('pile_figures')
+        from yadecd import pile_figures as pf
         with tempfile.TemporaryDirectory() as d:
             write_run(d)
             out = os.path.join(d, 'fig')

@@ -15,14 +15,12 @@ import unittest
 
 import numpy as np
 
-from yadecd_modules import load
+import repo_package  # noqa: F401
+from yadecd import ensemble as ens, pile_analysis as pa, synthetic as sy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-pa = load('pile_analysis')
-sy = load('synthetic')
-ens = load('ensemble')
 
 ALL = dict(cap_radius=0.01, sparse_axis=True, foot=True, strays=12)
 
@@ -305,7 +303,7 @@ class TestEnsembleStatistics(unittest.TestCase):
         -1, -1.5, -1 (not from the difference of the means of unpaired seeds: seed 4, relaxed only,
         is left out of the pairing). Pooled dip 1 - (1+2+3)/(2+4+6) = 0.5 with a zero jackknife
         error (every pile has the same ratio)."""
-        pea = load('pile_ensemble_analysis')
+        from yadecd import pile_ensemble_analysis as pea
         recs = [self.record(1000, s, 'feed', v, s, 2 * s) for s, v in ((1, 27.0), (2, 28.0), (3, 29.0))]
         recs += [self.record(1000, s, 'relaxed', v, 1.0, 1.0) for s, v in ((1, 26.0), (2, 26.5), (3, 28.0), (4, 20.0))]
         stats, changes = pea.aggregate(recs)
@@ -327,7 +325,7 @@ class TestStoredRecords(unittest.TestCase):
     def test_stored_records_fill_in_absent_runs_only(self):
         """Stored records are added for runs the ensemble directory lacks, never twice, and a
         record from another analysis version is refused with a message naming it."""
-        pea = load('pile_ensemble_analysis')
+        from yadecd import pile_ensemble_analysis as pea
         with tempfile.TemporaryDirectory() as d:
             for run in ('n10_s1', 'n10_s2'):
                 with open(os.path.join(d, run + '_relaxed.json'), 'w') as f:

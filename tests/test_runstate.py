@@ -11,15 +11,15 @@ import unittest
 
 import numpy as np
 
+import repo_package  # noqa: F401
 from yade import O
 import yadecd.pile as pile
 import yadecd.runstate as runstate
 from yadecd.checkpoint import CheckpointError, CheckpointStore
-from yadecd_modules import load
+from yadecd import faults
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-faults = load('faults')
 TINY = dict(n_grains=30, relax=0.05, snap_every=1e9, seed=5)   # 0.2 s: 1000 steps
 QUIET = dict(log=lambda s: None)
 REBUILT_GAP = 1e-6   # [d_min] measured: 0 (the rebuilt run repeats the uninterrupted one here)
@@ -381,11 +381,12 @@ class TestLayoutChange(unittest.TestCase):
 
 
 def load_variant():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location('plugin_variant', os.path.join(REPO, 'scripts', 'plugin_variant.py'))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    """scripts/plugin_variant.py, imported as a module."""
+    import sys
+    if os.path.join(REPO, 'scripts') not in sys.path:
+        sys.path.insert(0, os.path.join(REPO, 'scripts'))
+    import plugin_variant
+    return plugin_variant
 
 
 if __name__ == '__main__':

@@ -10,13 +10,10 @@ The C++ classes (``ContactDynamicsIntegrator``, ``CDPhys``, ``Ip2_FrictMat_Frict
 ``Law2_ScGeom_CDPhys_Coulomb`` and the ``Ig2_*_CDScGeom`` / ``Bo1_Sphere_CDAabb`` functors) are
 loaded by YADE at start-up and live in ``yade.wrapper`` like every other class.
 """
-from yade.wrapper import (ForceResetter, InsertionSortCollider, InteractionLoop, Bo1_Wall_Aabb,
-                          Bo1_Facet_Aabb, Bo1_Sphere_CDAabb, Ig2_Sphere_Sphere_CDScGeom,
-                          Ig2_Wall_Sphere_CDScGeom, Ig2_Facet_Sphere_CDScGeom,
-                          Ip2_FrictMat_FrictMat_CDPhys, Law2_ScGeom_CDPhys_Coulomb,
-                          ContactDynamicsIntegrator)
-
 __all__ = ['engines', 'integrator']
+
+# YADE is imported by the functions that need it, never at import time: the analysis modules
+# (pile_analysis, pile_figures, ensemble, checkpoint, faults, synthetic...) import without YADE.
 
 
 def engines(gravity=(0, 0, -9.81), en=0.0, et=0.0, extra=(), **integrator_options):
@@ -35,6 +32,11 @@ def engines(gravity=(0, 0, -9.81), en=0.0, et=0.0, extra=(), **integrator_option
     :param integrator_options: attributes of :yref:`ContactDynamicsIntegrator` (``tolerance``,
         ``maxIter``, ``alertRatio``...).
     """
+    from yade.wrapper import (ForceResetter, InsertionSortCollider, InteractionLoop, Bo1_Wall_Aabb,
+                              Bo1_Facet_Aabb, Bo1_Sphere_CDAabb, Ig2_Sphere_Sphere_CDScGeom,
+                              Ig2_Wall_Sphere_CDScGeom, Ig2_Facet_Sphere_CDScGeom,
+                              Ip2_FrictMat_FrictMat_CDPhys, Law2_ScGeom_CDPhys_Coulomb,
+                              ContactDynamicsIntegrator)
     return [
         ForceResetter(),
         InsertionSortCollider([Bo1_Sphere_CDAabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()]),
@@ -50,6 +52,7 @@ def engines(gravity=(0, 0, -9.81), en=0.0, et=0.0, extra=(), **integrator_option
 def integrator():
     """The scene's :yref:`ContactDynamicsIntegrator` (raises LookupError when there is none)."""
     from yade import O
+    from yade.wrapper import ContactDynamicsIntegrator
     for e in O.engines:
         if isinstance(e, ContactDynamicsIntegrator):
             return e

@@ -15,6 +15,8 @@ import time
 
 import numpy as np
 
+from . import checkpoint as ck
+
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
@@ -182,20 +184,6 @@ class KillCampaign:
         return resumed, skipped
 
 
-def _checkpoint_module():
-    """yadecd.checkpoint, loaded from its file (this module runs without YADE)."""
-    import importlib.util
-    import sys
-    name = '_yadecd_checkpoint'
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, os.path.join(os.path.dirname(os.path.abspath(__file__)),
-                                                                          'checkpoint.py'))
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
-
-
 def fill(path, chunk=1 << 16):
     """Write zeros to ``path`` until the disk is full; returns the bytes written."""
     written = 0
@@ -214,7 +202,6 @@ def fill_disk_trial(run_dir, options, filler, log_path=None, timeout=600, env=No
     its exit awaited (it must fail with a clear error), its newest checkpoint checked, the space
     given back and the run resumed to its end. Returns a record of what happened."""
     log_path = log_path or os.path.join(os.path.dirname(os.path.dirname(filler)) or '.', 'fill_disk.log')
-    ck = _checkpoint_module()
     with open(log_path, 'w') as logf:
         proc = subprocess.Popen(pile_command(run_dir, options), stdout=logf, stderr=subprocess.STDOUT, env=env,
                                 start_new_session=True)

@@ -1,8 +1,8 @@
 """Analysis of a sand pile built by Contact Dynamics (Moreau, section IV): free surface,
 force transmission across revolved bands, ground pressure, fabric, speed classes, fossil layers.
 
-Pure numpy: nothing here needs YADE, so the module can be loaded by Debian's ``/usr/bin/python3``
-from its file path (see ``scripts/pile_figures.py``). Everything is SI inside: metres, seconds,
+Pure numpy: nothing here needs YADE, so ``yadecd.pile_analysis`` imports under Debian's
+``/usr/bin/python3`` as well (see ``scripts/pile_figures.py``). Everything is SI inside: metres, seconds,
 kilograms, newtons, pascals, radians (angles *returned* in degrees say so in their name).
 
 Snapshot format (one ``.npz`` per epoch, written by the deposition script)::

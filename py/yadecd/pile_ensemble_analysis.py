@@ -9,33 +9,16 @@ central dip is pooled over seeds (D = 1 - sum of disc pressures / sum of annulus
 jackknife over piles); the reciprocity and fossil-layer statistics are pooled over pairs, cuts
 and seeds. Written: ``ensemble_summary.json``, ``ensemble_table.md`` and three figures.
 
-numpy and matplotlib only; loads its sibling modules from their files (no YADE needed).
+numpy and matplotlib only (no YADE needed).
 """
-import importlib.util
 import json
-import math
 import os
-import sys
 import time
 
 import numpy as np
 
 
-def _sibling(name):
-    key = '_yadecd_' + name
-    if key in sys.modules:
-        return sys.modules[key]
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), name + '.py')
-    spec = importlib.util.spec_from_file_location(key, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[key] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-pa = _sibling('pile_analysis')
-pf = _sibling('pile_figures')
-ens = _sibling('ensemble')
+from . import ensemble as ens, pile_analysis as pa, pile_figures as pf
 
 CM, DPA = 100.0, 10.0
 CACHE_VERSION = 7

@@ -5,16 +5,10 @@ Uses numpy and matplotlib only, through the Agg canvas directly (no pyplot, no d
 backend of an interactive session is left alone). Figures show lengths in cm, pressures in dPa
 (1 Pa = 10 dPa) and speeds in cm/s as the paper does; every number computed is SI (see
 :mod:`pile_analysis`).
-
-This module finds :mod:`pile_analysis` as its package sibling when imported as
-``yadecd.pile_figures`` (inside YADE), or else loads it from the file next to this one (when the
-module itself was loaded from its path, as ``scripts/pile_figures.py`` does outside YADE).
 """
-import importlib.util
 import json
 import math
 import os
-import sys
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -22,29 +16,7 @@ from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Patch
 
-_ANALYSIS_NAME = '_yadecd_pile_analysis'
-
-
-def _load_analysis():
-    """The pile_analysis module: the package sibling if this module is part of the yadecd
-    package, else the file next to this one (registered once in sys.modules)."""
-    if __package__:
-        try:
-            from . import pile_analysis
-            return pile_analysis
-        except ImportError:
-            pass
-    if _ANALYSIS_NAME in sys.modules:
-        return sys.modules[_ANALYSIS_NAME]
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'pile_analysis.py')
-    spec = importlib.util.spec_from_file_location(_ANALYSIS_NAME, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[_ANALYSIS_NAME] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-pa = _load_analysis()
+from . import pile_analysis as pa
 
 __all__ = ['fig_speed', 'fig_slices', 'fig_reciprocal', 'fig_cylindrical', 'fig_ground_pressure',
            'fig_orientation', 'fig_force_chains', 'fig_profile', 'analyse']

@@ -18,7 +18,6 @@ import time
 import numpy as np
 
 from yade import O, utils, Vector3
-from yade.wrapper import Sphere
 
 from . import engines
 from .pile import paving
