@@ -273,8 +273,9 @@ void ContactDynamicsIntegrator::checkScene()
 	}
 }
 
-// Copy every CD contact into the flat array, in a fixed (id1, id2) order: the interaction
-// container's own order changes after O.load or an erase, and Gauss–Seidel depends on order.
+// Stage 1: copy every CD contact into the flat array, in a fixed order (by height along −gravity,
+// ties by (id1, id2); by ids only for sweepOrder 0): the interaction container's own order changes
+// after O.load or an erase, and Gauss–Seidel depends on order.
 void ContactDynamicsIntegrator::gatherContacts()
 {
 	contacts.clear();
@@ -331,7 +332,7 @@ void ContactDynamicsIntegrator::gatherContacts()
 	nContacts = int(contacts.size());
 }
 
-// Stage 1 (paper §II.3): q_m = q_i + h/2 u_i, for every body (kinematic ones included).
+// Stage 2 (paper §II.3): q_m = q_i + h/2 u_i, for every body (kinematic ones included).
 void ContactDynamicsIntegrator::predictPositions()
 {
 	const Real h = scene->dt;
@@ -343,7 +344,7 @@ void ContactDynamicsIntegrator::predictPositions()
 	}
 }
 
-// Stage 2: contact frames and gaps at q_m, from the same Ig2 functor that made the contact.
+// Stage 3: contact frames and gaps at q_m, from the same Ig2 functor that made the contact.
 void ContactDynamicsIntegrator::updateContactFrames()
 {
 	const long nc = long(contacts.size());
@@ -381,7 +382,7 @@ void ContactDynamicsIntegrator::updateContactFrames()
 	}
 }
 
-// Stage 3: u_free = u_i + h M⁻¹ (F + m g), F from O.forces (user forces, GravityEngine...).
+// Stage 4: u_free = u_i + h M⁻¹ (F + m g), F from O.forces (user forces, GravityEngine...).
 // Gravity is applied on unblocked translational axes only, as NewtonIntegrator does.
 void ContactDynamicsIntegrator::computeFreeVelocities()
 {
@@ -397,7 +398,7 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 	}
 }
 
-// Stage 4a: per contact, W = F (K1 + K2) Fᵀ with K_b = diag(1/m_b) − [c_b]x I_b⁻¹ [c_b]x, the
+// Stage 5: per contact, W = F (K1 + K2) Fᵀ with K_b = diag(1/m_b) − [c_b]x I_b⁻¹ [c_b]x, the
 // start-of-step local velocity U_i, and the law's scaling A and offset s (see the header).
 void ContactDynamicsIntegrator::assembleLocalProblems()
 {
@@ -808,7 +809,7 @@ Real ContactDynamicsIntegrator::slabSweep(Real omega)
 }
 
 
-// Stage 4b: nonlinear Gauss–Seidel over contacts. Each contact in turn: its local velocity
+// Stage 6: nonlinear Gauss–Seidel over contacts. Each contact in turn: its local velocity
 // without its own impulse, b = U − W r; the exact local solve of Ũ = A(W r + b + s); the
 // impulse change applied to both bodies at once.
 void ContactDynamicsIntegrator::solveImpulses()
@@ -989,7 +990,7 @@ Real ContactDynamicsIntegrator::correctionRange(long begin, long end, bool forwa
 	return worst;
 }
 
-// Stage 5: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
+// Stage 7: position correction. The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from
 // normal pseudo-impulses P ≥ 0 that move positions but never velocities. Target: g_f ≥ −a,
 // with a the contact's overlap allowance (CDPhys.overlapAllowance: the overlap it was created
 // with, e.g. by packing generation, shrinking with the overlap). Such overlaps are kept, not
@@ -1043,7 +1044,7 @@ void ContactDynamicsIntegrator::correctPositions()
 		records[b].pv = pseudoV[b];
 }
 
-// Stage 6: q_f = q_m + h/2 (u_f + ũ), with u_f written to the bodies. Kinematic bodies and
+// Stage 8: q_f = q_m + h/2 (u_f + ũ), with u_f written to the bodies. Kinematic bodies and
 // blocked DOFs keep their imposed velocity. NaNs are caught here, before anything is stored.
 void ContactDynamicsIntegrator::updatePositions()
 {
@@ -1081,7 +1082,7 @@ void ContactDynamicsIntegrator::restoreStartOfStep()
 	}
 }
 
-// Stage 7: impulses (warm start) and forces into CDPhys, contact forces into O.forces, energy,
+// Stage 9: impulses (warm start) and forces into CDPhys, contact forces into O.forces, energy,
 // and the collider's hint (NewtonIntegrator::maxVelocitySq, as NewtonIntegrator sets it).
 void ContactDynamicsIntegrator::storeResults()
 {

@@ -12,21 +12,22 @@
 //
 // The InteractionLoop, at the positions q_i of the step start, creates a contact for every pair
 // closer than the alert distance and erases the far ones. This engine then runs Moreau's
-// midpoint step (paper §II.3), one private method per stage:
+// midpoint step (paper §II.3), one private method per stage, numbered as in docs/method.md and
+// in the comments of ContactDynamicsIntegrator.cpp:
 //
-//   gatherContacts            copy every CDPhys contact into a flat array, sorted by (id1, id2),
-//                             with its start-of-step gap g_i and warm-start impulse
-//   predictPositions          q_m = q_i + h/2 u_i
-//   updateContactFrames       ScGeom recomputed at q_m by the contact's own Ig2 functor
-//   computeFreeVelocities     u_free = u_i + h M⁻¹ (F_ext + m g)
-//   assembleLocalProblems     local frame, Delassus block W_αα, law offsets per contact
-//   solveImpulses             nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
+//   1 gatherContacts          copy every CDPhys contact into a flat array, sorted by height along
+//                             −gravity (ties by ids), with its start-of-step gap g_i and warm start
+//   2 predictPositions        q_m = q_i + h/2 u_i
+//   3 updateContactFrames     ScGeom recomputed at q_m by the contact's own Ig2 functor
+//   4 computeFreeVelocities   u_free = u_i + h M⁻¹ (F_ext + m g)
+//   5 assembleLocalProblems   local frame, Delassus block W_αα, law offsets per contact
+//   6 solveImpulses           nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
 //                             in sweepOrder (default: by height, upwards); sphere contacts through
-//                             a compact fast path, optionally coloured and parallel
-//   correctPositions          split projection: removes only the overlap that the step created,
+//                             a compact fast path, optionally coloured or in slabs, in parallel
+//   7 correctPositions        split projection: removes only the overlap that the step created,
 //                             through pseudo-velocities that are never stored
-//   updatePositions           q_f = q_m + h/2 (u_f + ũ)
-//   storeResults              impulses (warm start), forces, O.forces, energy, collider hint
+//   8 updatePositions         q_f = q_m + h/2 (u_f + ũ)
+//   9 storeResults            impulses (warm start), forces, O.forces, energy, collider hint
 //
 // Conventions: the local frame of a contact is (n, t1, t2), n from body 1 to body 2 (ScGeom's);
 // r is the impulse on body 2 [N·s], r_N ≥ 0 in compression; U is the velocity of body 2
