@@ -75,14 +75,13 @@ namespace cd {
 		Vector2r V;
 		Real     lo = 0, glo = cut(lo, den, V);
 		for (int k = 1; k <= samples; ++k) {
-			Real       hi = 2 * pi * k / samples;
-			const Real ghi = cut(hi, den, V), gnext = ghi, next = hi;
-			if (glo == 0 || (glo < 0) != (ghi < 0)) {
-				Real a = lo, ga = glo;
-				for (int it = 0; it < 200 && ga != 0 && hi - a > 4 * std::numeric_limits<Real>::epsilon(); ++it) {
-					const Real mid = 0.5 * (a + hi), gm = cut(mid, den, V);
+			const Real hi = 2 * pi * k / samples, ghi = cut(hi, den, V);
+			if (glo == 0 || (glo < 0) != (ghi < 0)) { // a root in [lo, hi]: bisect [a, z]
+				Real a = lo, ga = glo, z = hi;
+				for (int it = 0; it < 200 && ga != 0 && z - a > 4 * std::numeric_limits<Real>::epsilon(); ++it) {
+					const Real mid = 0.5 * (a + z), gm = cut(mid, den, V);
 					if ((gm < 0) == (ga < 0)) a = mid, ga = gm;
-					else hi = mid;
+					else z = mid;
 				}
 				cut(a, den, V);
 				const Real c = math::cos(a), s = math::sin(a);
@@ -93,7 +92,7 @@ namespace cd {
 					if (err < best) best = err, r = cand, found = true;
 				}
 			}
-			lo = next, glo = gnext;
+			lo = hi, glo = ghi;
 		}
 		return found;
 	}
