@@ -12,19 +12,19 @@
 //
 // The InteractionLoop, at the positions q_i of the step start, creates a contact for every pair
 // closer than the alert distance and erases the far ones. This engine then runs Moreau's
-// midpoint step (paper §II.3), one private method per stage, numbered as in docs/method.md and
-// in the comments of ContactDynamicsIntegrator.cpp:
+// midpoint step (paper §II.3) in nine stages, numbered as in docs/method.md. The engine is a thin
+// adapter around the solver core (pkg/cd/core: no YADE object is touched there): stages 1–4 and
+// 8–9 move data between YADE and the core's flat arrays, stages 5–7 are the core's.
 //
-//   1 gatherContacts          copy every CDPhys contact into a flat array, sorted by height along
-//                             −gravity (ties by ids), with its start-of-step gap g_i and warm start
+//   1 gatherContacts          every CDPhys contact into the core's contact set, sorted by height
+//                             along −gravity (ties by ids), with its start-of-step gap and warm start
 //   2 predictPositions        q_m = q_i + h/2 u_i
 //   3 updateContactFrames     ScGeom recomputed at q_m by the contact's own Ig2 functor
 //   4 computeFreeVelocities   u_free = u_i + h M⁻¹ (F_ext + m g)
-//   5 assembleLocalProblems   local frame, Delassus block W_αα, law offsets per contact
-//   6 solveImpulses           nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
-//                             in sweepOrder (default: by height, upwards); sphere contacts through
-//                             a compact fast path, optionally coloured or in slabs, in parallel
-//   7 correctPositions        split projection: removes only the overlap that the step created,
+//   5 core.assemble           local frame, Delassus block W_αα, law offsets per contact
+//   6 core.solve              nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
+//                             in the order of a schedule (sweepOrder: by height, colours, slabs)
+//   7 core.correct            split projection: removes only the overlap that the step created,
 //                             through pseudo-velocities that are never stored
 //   8 updatePositions         q_f = q_m + h/2 (u_f + ũ)
 //   9 storeResults            impulses (warm start), forces, O.forces, energy, collider hint
@@ -50,67 +50,14 @@
 #include <core/Interaction.hpp>
 #include <pkg/dem/NewtonIntegrator.hpp>
 
+#include "core/Solver.hpp"
+
 namespace yade {
 
 class Scene;
 
 class ContactDynamicsIntegrator : public NewtonIntegrator {
 public:
-	/*! One body's unknowns in the solve (flat array indexed by body id): what a sweep touches. */
-	struct SolverBody {
-		Vector3r v, w;  // velocity and angular velocity (u_free, then u_f)
-		Vector3r invM;  // inverse mass per global axis; 0 on blocked or kinematic axes
-		Matrix3r invI;  // inverse inertia (global frame); blocked rows/columns zero
-	};
-	/*! The rest of a body's step data (flat array indexed by body id). */
-	struct BodyRecord {
-		Vector3r    vi, wi;  // velocities at the start of the step (u_i)
-		Vector3r    pv, pw;  // pseudo-velocities of the position correction (ũ)
-		Vector3r    qi;      // position at the step start
-		Quaternionr oi;      // orientation at the step start
-		bool        active = false; // body exists and is handled by this engine
-		bool        dynamic = false;
-		Real        isoInvM = -1, isoInvI = -1; // scalar 1/m and 1/I when isotropic and unblocked, else −1
-	};
-	/*! One contact of the step (flat array, sorted by (id1,id2)). */
-	struct SolverContact {
-		shared_ptr<Interaction> I;
-		int          b1, b2;  // body ids
-		Matrix3r     frame;   // rows n, t1, t2
-		Vector3r     c1, c2;  // contact point minus body centres, at q_m
-		Matrix3r     W;       // local Delassus block
-		Matrix3r     Wlaw;    // A·W, the block seen by the law
-		Matrix3r     WlawInv; // its inverse (the sticking branch of the local solve)
-		Vector3r     A;       // law scaling diag(1/(1+en), 1/(1+et), 1/(1+et))
-		Vector3r     s;       // law offset: e∘U_i (closed) or (2 g_m/h, 0, 0) (open)
-		Vector3r     r;       // impulse, local frame
-		Vector3r     Ui;      // U_i, local
-		Real         mu, gapI, gapM, refR, allowance;
-		Real         height;  // contact point along −gravity: the sweep order
-		int          status;
-	};
-
-	/*! The hot copy of a contact whose lever arms lie along the normal (c_b = l_b n, as for every
-	 *  sphere) between bodies that are isotropic (scalar 1/m, 1/I, nothing blocked) or obstacles
-	 *  that do not rotate. Its Delassus block is then diagonal, diag(m1+m2, m1+m2+l1k1+l2k2, same),
-	 *  and a Gauss–Seidel update reads only these numbers and the two bodies' velocities.
-	 *  Other contacts (blocked DOFs, anisotropic inertia, rotating obstacles) take the general
-	 *  path on SolverContact; both give the same result to rounding. */
-	struct SphereContact {
-		// first cache line: what the momentum pass reads
-		Vector3r r;         // impulse, local frame
-		Real     mu, wnn;   // friction coefficient, W_NN
-		int      b1, b2, status;
-		bool     fast;      // false: use the general path on SolverContact
-		Vector3r n, t1, t2; // local frame
-		Vector3r Wd;        // diagonal of the law's block A·W
-		Vector3r A;         // law scaling
-		Vector3r bias;      // A∘s
-		Real     l1, l2;    // lever arms along n
-		Real     m1, m2;    // inverse masses (0: obstacle)
-		Real     k1, k2;    // inverse inertias times lever arms
-	};
-
 	void action() override;
 	void postLoad(ContactDynamicsIntegrator&);
 
@@ -119,72 +66,29 @@ public:
 	static const ContactDynamicsIntegrator* find(const Scene* scene);
 
 private:
-	std::vector<SolverBody>    bodies;
-	std::vector<BodyRecord>    records;
-	std::vector<SolverContact> contacts;
-	std::vector<SphereContact> hot; // parallel to contacts
-	std::vector<long>          colourStart; // coloured sweep: contacts of colour c are contacts[colourStart[c] .. colourStart[c+1])
-	std::vector<long>          blockStart;  // slab sweep: slab s is contacts[blockStart[s] .. blockStart[s+1]), the interface the last range
-	std::vector<Real>          blockChange; // slab sweep: per slab, the sweep's Σ(W_NN|Δr|)²
-	std::vector<int>           blockStatus; // slab sweep: per slab, status changes
-	std::vector<Real>          sweepChange;              // per contact, summed in a fixed order
-	std::vector<char>          statusChanged;
-	/*! One contact's row of the position correction: all that a correction sweep reads. */
-	struct CorrectionRow {
-		Vector3r n;       // normal (sphere-path rows)
-		Real     m1, m2;  // inverse masses (sphere-path rows; 0: obstacle)
-		Real     overlap; // (−a − g_f)/refR without pseudo-velocities: overlap beyond the allowance [-]
-		Real     lag;     // h/(2 refR): normal pseudo-velocity → relative overlap
-		Real     gain;    // (2/h) refR / W_NN: relative overlap → pseudo-impulse
-		Real     P;       // normal pseudo-impulse
-		int      b1, b2;
-		bool     fast;    // false: the general path through SolverContact
+	/*! What the adapter keeps of a body to restore a failed step (indexed by body id). */
+	struct StartOfStep {
+		Vector3r    pos;
+		Quaternionr ori;
+		bool        active = false; // body exists and is handled by this engine
 	};
-	std::vector<CorrectionRow> corrections;
-	std::vector<Vector3r>      pseudoV;      // translational pseudo-velocities during the correction
-	std::vector<Vector3r>      rPrev;        // momentum: impulses after the previous sweep (per contact)
-	std::vector<Vector3r>      vPrev, wPrev; // momentum: body velocities after the previous sweep
-	std::vector<Real>          qShare;    // per contact, its share of ‖q‖² (assembly)
-	Real                       qNorm = 0; // ‖q‖: norm of the free local velocities, residual scale
+	cd::Solver                           core;  // bodies, contacts and the solver (pkg/cd/core)
+	std::vector<StartOfStep>             start;
+	std::vector<shared_ptr<Interaction>> links; // the interaction of each contact, by ContactInfo::origin
 
-	void checkScene();
-	void checkInheritedAttributes() const;
-	void gatherContacts();
-	void predictPositions();
-	void updateContactFrames();
-	void computeFreeVelocities();
-	void assembleLocalProblems();
-	void solveImpulses();
-	void correctPositions();
-	void updatePositions();
-	void storeResults();
-	void trackEnergy();
-	void restoreStartOfStep();
-
-	Vector3r localVelocity(const SolverContact& c) const;
-	Vector3r localPseudoVelocity(const SolverContact& c) const;
-	void     applyImpulse(const SolverContact& c, const Vector3r& dr);
-	void     applySphereImpulse(const SphereContact& c, const Vector3r& dr);
-	void     startMomentum();
-	void     extrapolateImpulses(Real beta);
-	void     buildSphereContact(size_t k);
-	Vector3r updateSphereContact(SphereContact& c, Real omega);
-	Vector3r sphereVelocity(const SphereContact& c) const;
-	Vector3r updateGeneralContact(SolverContact& c, Real omega);
-	void     syncHotContacts();
-	Real     updateContact(long idx, Real omega, bool& changed);
-	Real     sweepRange(long begin, long end, Real omega, int& nChanged);
-	Real     orderedSweep(Real omega, bool up);
-	void     permuteContacts(const std::vector<long>& order);
-	void     colourContacts();
-	Real     colouredSweep(Real omega);
-	void     partitionSlabs();
-	Real     slabSweep(Real omega);
-	void     extrapolateRange(long begin, long end, Real beta);
-	void     applyPseudoImpulse(const SolverContact& c, Real dP);
-	Real     correctionRange(long begin, long end, bool forward);
-	Real     computeResidual();
-	void     delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const;
+	cd::Params params() const;
+	void       checkScene();
+	void       checkInheritedAttributes() const;
+	void       gatherContacts();
+	void       predictPositions();
+	void       updateContactFrames();
+	void       computeFreeVelocities();
+	void       solveImpulses();
+	void       correctPositions();
+	void       updatePositions();
+	void       storeResults();
+	void       trackEnergy();
+	void       restoreStartOfStep();
 
 public:
 // Test only (tests/test_runstate.py builds a second copy of the plugin with it): one more
@@ -201,8 +105,8 @@ public:
 		((Real, tolerance, 1e-6, Attr::triggerPostLoad, "Convergence threshold of the Gauss–Seidel solve on the relative natural-map residual :yref:`residual<ContactDynamicsIntegrator.residual>` [-]."))
 		((int, maxIter, 1000, Attr::triggerPostLoad, "Maximum number of Gauss–Seidel sweeps per step. A step that stops here unconverged warns and counts in :yref:`nUnconverged<ContactDynamicsIntegrator.nUnconverged>`."))
 		((int, checkEvery, 1, Attr::triggerPostLoad, "Evaluate the exact residual (a pass that costs about one sweep) at most every this many sweeps, and only after a sweep whose own velocity changes sqrt(Σ(W_NN|Δr|)²) fell below tolerance·‖q‖ (or every checked sweep with recordResidual)."))
-		((Real, relaxation, 1.0, Attr::triggerPostLoad, "Over-relaxation ω of each local update, r ← P_C(r + ω(r_local − r)), in (0, 2); 1 is plain Gauss–Seidel. Open contacts always take r_local = 0. Once a step's sweeps stop contracting (no 1% improvement of the sweep's velocity change in 50 sweeps) the step finishes with ω = 1, since over-relaxation is not safe with friction. Measured: ω = 1.95 takes 27× fewer sweeps than ω = 1 on a 160-sphere column, ω = 1.3–1.6 about 14% less time on a pile; but with ω ≠ 1 even a single contact is solved only to the tolerance, not exactly in one sweep (see docs/results.md)."))
-		((int, sweepOrder, 1, Attr::triggerPostLoad, "Order of the Gauss–Seidel sweeps: 0 by body ids (id1, id2); 1 by contact height along −gravity, upwards; 2 by height, alternating upwards and downwards; 3 by height, downwards; 4 coloured: contacts grouped into colours that share no dynamic body (greedy, in height order) and swept colour by colour, the contacts of a colour updated in parallel by O.numThreads threads (yade -j N) — the result is bit-identical for any thread count; 5 slabs: the scene cut into :yref:`slabs<ContactDynamicsIntegrator.slabs>` vertical slabs of equal contact counts across its wider horizontal extent, each slab's inner contacts swept upwards by height, the slabs in parallel (O.numThreads threads), then the contacts of the bodies that touch two slabs, upwards by height, by one thread — bit-identical for any thread count, and keeps the upward order that piles need. Every order is deterministic."))
+		((Real, relaxation, 1.0, Attr::triggerPostLoad, "Over-relaxation ω of each local update, r ← P_C(r + ω(r_local − r)), in (0, 2); 1 (the default) is plain Gauss–Seidel, swept by a kernel that carries no trace of ω. Open contacts always take r_local = 0. Once a step's sweeps stop contracting (no 1% improvement of the sweep's velocity change in 50 sweeps) the step finishes with ω = 1, since over-relaxation is not safe with friction. Kept for columns and comparisons: ω = 1.95 takes 27× fewer sweeps than ω = 1 on a 160-sphere column; on piles momentum is faster and ω ≥ 1.6 stops converging (docs/results.md). With ω ≠ 1 even a single contact is solved only to the tolerance, not exactly in one sweep."))
+		((int, sweepOrder, 1, Attr::triggerPostLoad, "Schedule of the Gauss–Seidel sweeps (every one deterministic; momentum and the position correction follow the same schedule): 1 by height: contacts by height along −gravity, upwards (a load change at the floor travels up the whole stack in one sweep); 4 colours: contacts grouped into colours that share no dynamic body (greedy, in height order), swept colour by colour, the contacts of a colour in parallel on O.numThreads threads (yade -j N), bit-identical for any thread count; 5 slabs: the scene cut into :yref:`slabs<ContactDynamicsIntegrator.slabs>` vertical slabs of equal contact counts across its wider horizontal extent, each slab's inner contacts upwards by height, the slabs in parallel (O.numThreads threads), then the contacts of the bodies that touch two slabs, upwards, by one thread: bit-identical for any thread count, and keeps the upward order that piles need. Orders 0 (by ids), 2 (alternating up and down) and 3 (downwards) were measured worse than 1 (docs/results.md) and are retired: setting them is an error."))
 		((int, slabs, 2, Attr::triggerPostLoad, "Number of slabs of sweepOrder 5 (1–64): the most threads that order can use. Fixed by the user, not by the thread count, so that results do not depend on the threads. More slabs make the sequential interface larger (the contacts of the bodies that straddle a cut)."))
 		((Real, alertRatio, 0.05, Attr::triggerPostLoad, "Alert distance, static part, relative to the smaller radius of a pair [-]. A pair becomes a contact when its gap is below alertRatio·min(r1,r2) + alertSpeedFactor·dt·(|v1|+|v2|)."))
 		((Real, alertSpeedFactor, 2.0, Attr::triggerPostLoad, "Alert distance, speed part: how many steps' worth of travel at the current speed a pair is watched ahead [-]. Must be ≥ 1 so that no contact closing within a step is missed (no tunnelling)."))

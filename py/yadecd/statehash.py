@@ -7,7 +7,7 @@ the container's order carries no physics). ``tests/data/state_hashes.json`` hold
 engine gave before a refactor, for one and two threads (``scripts/state_hashes.py`` writes it);
 ``tests/test_state_hashes.py`` requires the same hashes after it.
 
-The cases cover every sweep order, momentum on and off, the sphere fast path and the general
+The cases cover every sweep schedule (with parallel stages), momentum on and off, the sphere fast path and the general
 3×3 path, over-relaxation, a sparser residual check, restitution, a hyperstatic block, a mass
 ratio and a fed pile.
 """
@@ -33,7 +33,7 @@ def _loose(**opts):
     return scenes.random_loose_packing(n=30, seed=3, **opts)
 
 
-for _order in (0, 1, 2, 3, 4, 5):
+for _order in (1, 4, 5):   # orders 0, 2, 3 retired (measured worse; refused by the engine)
     _case('loose30_order%d' % _order, _loose, 300, sweepOrder=_order)
 for _order in (1, 4, 5):
     _case('loose30_order%d_plain' % _order, _loose, 300, sweepOrder=_order, momentum=False)
@@ -42,6 +42,12 @@ _case('loose30_relaxation', _loose, 300, sweepOrder=1, momentum=False, relaxatio
 _case('loose30_check_every4', _loose, 300, sweepOrder=5, checkEvery=4)
 _case('fcc1000_order1', lambda **o: scenes.fcc_block(1000, **o), 5, sweepOrder=1)
 _case('fcc1000_order5', lambda **o: scenes.fcc_block(1000, **o), 5, sweepOrder=5, slabs=4)
+# parallel stages: colours of ≥ 64 contacts, slabs of ≥ 256 inner contacts, with landings (the
+# position correction at work) in the loose 300-grain packing
+_case('fcc1000_order4', lambda **o: scenes.fcc_block(1000, **o), 5, sweepOrder=4)
+for _order in (1, 4, 5):
+    _case('loose300_order%d' % _order, lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
+          sweepOrder=_order)
 _case('mass_ratio100', lambda **o: scenes.mass_ratio_stack(100.0, **o), 50, tolerance=1e-10)
 _case('binary_restitution', lambda **o: scenes.binary_collision((1.0, 0.2, 0), (-0.5, 0, 0.1), en=0.6, et=0.2,
                                                                 gap=1e-4, offset=0.004), 40)

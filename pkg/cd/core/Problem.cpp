@@ -1,0 +1,65 @@
+// Contact Dynamics solver core: the contact set's bookkeeping (see Problem.hpp).
+#include "Problem.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+namespace yade {
+namespace cd {
+
+	void ContactSet::clear()
+	{
+		info.clear();
+		r.clear();
+		mu.clear();
+		status.clear();
+		kernel.clear();
+		sphere.clear();
+		general.clear();
+	}
+
+	void ContactSet::add(const ContactInfo& c, Real mu_, int status_)
+	{
+		info.push_back(c);
+		r.push_back(Vector3r::Zero());
+		mu.push_back(mu_);
+		status.push_back(status_);
+		kernel.push_back(-1);
+		sphere.emplace_back();
+	}
+
+	namespace {
+		template <class T> void permuteArray(std::vector<T>& a, const std::vector<long>& order)
+		{
+			std::vector<T> sorted;
+			sorted.reserve(a.size());
+			for (long k : order)
+				sorted.push_back(std::move(a[k]));
+			a.swap(sorted);
+		}
+	}
+
+	void ContactSet::permute(const std::vector<long>& order)
+	{
+		permuteArray(info, order);
+		permuteArray(r, order);
+		permuteArray(mu, order);
+		permuteArray(status, order);
+		permuteArray(kernel, order);
+		permuteArray(sphere, order);
+	}
+
+	void ContactSet::sortByHeight()
+	{
+		std::vector<long> order(size());
+		std::iota(order.begin(), order.end(), 0L);
+		std::sort(order.begin(), order.end(), [this](long a, long b) {
+			const ContactInfo &ca = info[a], &cb = info[b];
+			if (ca.height != cb.height) return ca.height < cb.height;
+			return ca.b1 < cb.b1 || (ca.b1 == cb.b1 && ca.b2 < cb.b2);
+		});
+		permute(order);
+	}
+
+} // namespace cd
+} // namespace yade

@@ -1,0 +1,72 @@
+// Contact Dynamics solver core: the order in which a Gauss–Seidel sweep visits the contacts.
+//
+// A schedule cuts the (permuted) contact set into consecutive ranges, and the ranges into
+// consecutive stages. Stages run one after the other; the ranges of a stage share no dynamic
+// body, so a parallel stage runs its ranges on several threads at once, each range in order.
+// Every pass over the contacts (the sweep, the momentum extrapolation, the position
+// correction) runs through Schedule::run, so they all follow one order and one OpenMP pattern.
+// Sums over a pass are taken range by range in a fixed order: results are bit-identical for any
+// thread count.
+//
+// Strategies (the integrator's sweepOrder):
+//   Height  (1)  one range, the contacts upwards by height: a load change at the floor travels up
+//                the whole stack in one sweep. The default.
+//   Colours (4)  contacts grouped into colours that share no dynamic body (greedy, in height
+//                order), one stage per colour, every contact its own range.
+//   Slabs   (5)  vertical slabs of equal contact counts across the wider horizontal extent; the
+//                contacts inside a slab form one range, all slabs one parallel stage, followed by
+//                the interface (contacts of bodies touching two slabs), one serial range.
+// Retired (measured worse, docs/results.md): 0 by ids, 2 alternating up and down, 3 downwards.
+#pragma once
+
+#include "Problem.hpp"
+
+namespace yade {
+namespace cd {
+
+	class Schedule {
+	public:
+		enum Kind { Height = 1, Colours = 4, Slabs = 5 };
+		/*! Stages [begin, end) of ranges; parallel: its ranges may run on several threads. */
+		struct Stage {
+			int  begin, end;
+			bool parallel;
+		};
+		std::vector<long>  bounds; // range i is contacts [bounds[i], bounds[i+1])
+		std::vector<Stage> stages;
+		int                nColours = 0;   // Colours: colours used (65: an overflow group exists)
+		int                nInterface = 0; // Slabs: contacts in the serial interface
+
+		int ranges() const { return int(bounds.size()) - 1; }
+
+		/*! Build the schedule of the given kind, permuting the set's contacts into its order. */
+		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, const Vector3r& up);
+
+		/*! Call f(range, begin, end) for every range, stage by stage (backwards: stages in reverse
+		 *  order, and f is told to walk its range backwards), the ranges of a parallel stage on
+		 *  all threads. */
+		template <class F> void run(F&& f) const
+		{
+			for (const Stage& st : stages) {
+#pragma omp parallel for schedule(static) if (st.parallel)
+				for (int i = st.begin; i < st.end; ++i)
+					f(i, bounds[i], bounds[i + 1]);
+			}
+		}
+		template <class F> void runBackwards(F&& f) const
+		{
+			for (auto st = stages.rbegin(); st != stages.rend(); ++st) {
+#pragma omp parallel for schedule(static) if (st->parallel)
+				for (int i = st->begin; i < st->end; ++i)
+					f(i, bounds[i], bounds[i + 1]);
+			}
+		}
+
+	private:
+		void byHeight(long nc);
+		void colours(ContactSet& set, const std::vector<BodyRecord>& records);
+		void slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up);
+	};
+
+} // namespace cd
+} // namespace yade

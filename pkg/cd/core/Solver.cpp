@@ -1,0 +1,532 @@
+// Contact Dynamics solver core: assembly, Gauss–Seidel solve and position correction (see
+// Solver.hpp for the stages, Problem.hpp for the data, LocalSolver.hpp for the contact law).
+#include "Solver.hpp"
+#include "LocalSolver.hpp"
+
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace yade {
+namespace cd {
+
+// The sweep's innermost helpers are member functions: in a -fPIC shared library GCC calls
+// interposable functions through the PLT instead of inlining them, which made the sweep 14%
+// slower (measured with perf and solver_bench.py). Force them inline.
+#define CD_HOT inline __attribute__((always_inline))
+
+	namespace {
+		// Cross-product matrix [c]x, so that [c]x p = c × p.
+		Matrix3r skew(const Vector3r& c)
+		{
+			Matrix3r m;
+			m << 0, -c[2], c[1], c[2], 0, -c[0], -c[1], c[0], 0;
+			return m;
+		}
+		std::string pairName(int id1, int id2) { return "(#" + std::to_string(id1) + ", #" + std::to_string(id2) + ")"; }
+	}
+
+	// ------------------------------------------------------------------------- stage 5: assembly
+
+	// Per contact, W = F (K1 + K2) Fᵀ with K_b = diag(1/m_b) − [c_b]x I_b⁻¹ [c_b]x, the
+	// start-of-step local velocity U_i, and the law's scaling A and offset s:
+	//   open   (g_m > 0): A = 1, s = (2 g_m/h, 0, 0): the end-of-step gap g_m + h/2 U_N stays ≥ 0;
+	//   closed (g_m ≤ 0): Moreau's restitution mean, A = diag(1/(1+e)), s = e∘U_i (a contact that
+	//                     landed last step uses its landing velocity instead of U_i).
+	void Solver::assemble(const Params& p)
+	{
+		const Real h  = p.h;
+		const long nc = long(contacts.size());
+		qShare.resize(nc); // each contact's share of ‖q‖², summed below in a fixed order
+#pragma omp parallel for schedule(static) if (nc >= 2048)
+		for (long k = 0; k < nc; ++k) { // contacts are independent here: any thread count gives the same blocks
+			ContactInfo&      c  = contacts.info[k];
+			const Body&       b1 = bodies[c.b1];
+			const Body&       b2 = bodies[c.b2];
+			const BodyRecord& r1 = records[c.b1];
+			const BodyRecord& r2 = records[c.b2];
+			const Matrix3r    S1 = skew(c.c1), S2 = skew(c.c2);
+			const Matrix3r    K  = Matrix3r(b1.invM.asDiagonal()) - S1 * b1.invI * S1 + Matrix3r(b2.invM.asDiagonal()) - S2 * b2.invI * S2;
+			c.W                  = c.frame * K * c.frame.transpose();
+			qShare[k]            = 0;
+			if (!(c.W(0, 0) > 0)) continue; // reported below, outside the parallel loop
+			c.Ui = c.frame * ((r2.vi + r2.wi.cross(c.c2)) - (r1.vi + r1.wi.cross(c.c1)));
+			if (c.gapM > 0) {
+				c.A = Vector3r::Ones();
+				c.s = Vector3r(2 * c.gapM / h, 0, 0);
+			} else {
+				const Vector3r Ui = (c.approach != Vector3r::Zero()) ? Vector3r(c.frame * c.approach) : c.Ui;
+				c.A               = Vector3r(1 / (1 + c.en), 1 / (1 + c.et), 1 / (1 + c.et));
+				c.s               = Vector3r(c.en * Ui[0], c.et * Ui[1], c.et * Ui[2]);
+			}
+			contacts.r[k] = c.frame * c.warmStart; // warm start, re-expressed in the new frame
+			buildSphereRow(k, p.sphereKernel);
+			// residual scale: free local velocities of the contacts that would close without an
+			// impulse (q_N < 0); far gap contacts, whose offsets 2 g_m/h are large, do not dilute it
+			const Vector3r q = c.A.cwiseProduct(localVelocity(k) + c.s);
+			if (q[0] < 0) qShare[k] = q.squaredNorm();
+		}
+		qNorm = 0;
+		contacts.general.clear();
+		for (long k = 0; k < nc; ++k) {
+			const ContactInfo& c = contacts.info[k];
+			if (!(c.W(0, 0) > 0))
+				throw std::invalid_argument("contact " + pairName(c.b1, c.b2) + " joins two bodies that cannot move: make one of them dynamic or remove the contact.");
+			qNorm += qShare[k];
+			if (contacts.kernel[k] >= 0) contacts.kernel[k] = int(contacts.general.size()), contacts.general.emplace_back();
+		}
+		qNorm           = math::sqrt(qNorm);
+		const long ng   = long(contacts.general.size());
+		if (ng == 0) return;
+#pragma omp parallel for schedule(static) if (ng >= 2048)
+		for (long k = 0; k < nc; ++k) {
+			if (contacts.kernel[k] < 0) continue;
+			const ContactInfo& c = contacts.info[k];
+			GeneralRow&        g = contacts.general[contacts.kernel[k]];
+			g.Wlaw               = c.A.asDiagonal() * c.W;
+			g.WlawInv            = g.Wlaw.inverse();
+		}
+	}
+
+	// The sphere kernel's row of contact k when its geometry and bodies allow (see SphereRow);
+	// otherwise the contact is marked for the general kernel (kernel[k] = 0 until numbered).
+	void Solver::buildSphereRow(long k, bool allowed)
+	{
+		const ContactInfo& c = contacts.info[k];
+		contacts.kernel[k]   = 0;
+		if (!allowed) return;
+		Real lever[2], invM[2], invI[2];
+		for (int side = 0; side < 2; ++side) {
+			const int         id = side ? c.b2 : c.b1;
+			const BodyRecord& br = records[id];
+			const Vector3r&   cb = side ? c.c2 : c.c1;
+			const Vector3r    n  = c.frame.row(0);
+			lever[side]          = cb.dot(n);
+			if (br.dynamic) {
+				if (br.isoInvM < 0 || (cb - lever[side] * n).squaredNorm() > 1e-20 * cb.squaredNorm()) return;
+				invM[side] = br.isoInvM;
+				invI[side] = br.isoInvI;
+			} else {
+				if (bodies[id].w != Vector3r::Zero()) return; // a rotating obstacle: general kernel
+				invM[side] = invI[side] = 0;
+			}
+		}
+		SphereRow& h       = contacts.sphere[k];
+		contacts.kernel[k] = -1;
+		h.n                = c.frame.row(0);
+		h.t1               = c.frame.row(1);
+		h.t2               = c.frame.row(2);
+		h.l1 = lever[0], h.l2 = lever[1];
+		h.m1 = invM[0], h.m2 = invM[1];
+		h.k1 = invI[0] * lever[0], h.k2 = invI[1] * lever[1];
+		const Real wn = h.m1 + h.m2, wt = wn + h.l1 * h.k1 + h.l2 * h.k2;
+		h.Wd          = c.A.cwiseProduct(Vector3r(wn, wt, wt));
+		h.A           = c.A;
+		h.bias        = c.A.cwiseProduct(c.s);
+		h.wnn         = wn;
+		h.b1 = c.b1, h.b2 = c.b2;
+	}
+
+	Vector3r Solver::localVelocity(long k) const
+	{
+		const ContactInfo& c  = contacts.info[k];
+		const Body&        b1 = bodies[c.b1];
+		const Body&        b2 = bodies[c.b2];
+		return c.frame * ((b2.v + b2.w.cross(c.c2)) - (b1.v + b1.w.cross(c.c1)));
+	}
+
+	// ------------------------------------------------------------------------- the two kernels
+
+	// Local velocity U of a sphere-kernel contact. With c_b = l_b n the rotation terms are
+	// l_b (w_b × n), whose local components are (0, w_b·t2, −w_b·t1).
+	CD_HOT Vector3r Solver::sphereVelocity(const SphereRow& c) const
+	{
+		const Body&    B1 = bodies[c.b1];
+		const Body&    B2 = bodies[c.b2];
+		const Vector3r dv = B2.v - B1.v;
+		const Vector3r om = c.l2 * B2.w - c.l1 * B1.w;
+		return Vector3r(c.n.dot(dv), c.t1.dot(dv) + om.dot(c.t2), c.t2.dot(dv) - om.dot(c.t1));
+	}
+
+	// The impulse change dr (local frame) applied to both bodies; its moment about a centre is
+	// l_b (n × P) = l_b (dr_1 t2 − dr_2 t1). Obstacles are never written (parallel stages share them).
+	CD_HOT void Solver::applySphereImpulse(const SphereRow& c, const Vector3r& dr)
+	{
+		const Vector3r P = dr[0] * c.n + dr[1] * c.t1 + dr[2] * c.t2;
+		const Vector3r x = dr[1] * c.t2 - dr[2] * c.t1;
+		if (c.m2 > 0) {
+			Body& B2 = bodies[c.b2];
+			B2.v += c.m2 * P;
+			B2.w += c.k2 * x;
+		}
+		if (c.m1 > 0) {
+			Body& B1 = bodies[c.b1];
+			B1.v -= c.m1 * P;
+			B1.w -= c.k1 * x;
+		}
+	}
+
+	// The impulse change dr (local frame) of any contact applied to both bodies.
+	CD_HOT void Solver::applyImpulse(const ContactInfo& c, const Vector3r& dr)
+	{
+		const Vector3r P  = c.frame.transpose() * dr; // on body 2; −P on body 1
+		Body&          b1 = bodies[c.b1];
+		Body&          b2 = bodies[c.b2];
+		if (records[c.b2].dynamic) {
+			b2.v += b2.invM.cwiseProduct(P);
+			b2.w += b2.invI * c.c2.cross(P);
+		}
+		if (records[c.b1].dynamic) {
+			b1.v -= b1.invM.cwiseProduct(P);
+			b1.w -= b1.invI * c.c1.cross(P);
+		}
+	}
+
+	// One Gauss–Seidel update of contact k: its local velocity without its own impulse,
+	// b = U − W r, the exact local solve of Ũ = A(W r + b + s), the change applied to both bodies
+	// at once. Returns (W_NN |Δr|)² and tells whether the status changed. Relaxed: the
+	// over-relaxed update r ← P_C(r + ω(r_local − r)) for closed contacts (a separate instance,
+	// so that the default kernel carries no trace of it).
+	template <bool Relaxed> CD_HOT Real Solver::updateContact(long k, Real omega, bool& changed)
+	{
+		Vector3r& r      = contacts.r[k];
+		int&      status = contacts.status[k];
+		const Real mu    = contacts.mu[k];
+		const int before = status;
+		Vector3r  rNew;
+		Real      wnn;
+		if (contacts.kernel[k] < 0) {
+			const SphereRow& c = contacts.sphere[k];
+			const Vector3r   b = c.A.cwiseProduct(sphereVelocity(c)) - c.Wd.cwiseProduct(r) + c.bias;
+			status             = int(solveLocalDiagonal(c.Wd, b, mu, rNew));
+			if (Relaxed && omega != 1 && status != int(ContactStatus::Open)) rNew = projectOnCone(r + omega * (rNew - r), mu);
+			const Vector3r dr = rNew - r;
+			applySphereImpulse(c, dr);
+			r   = rNew;
+			wnn = c.wnn;
+			changed = status != before;
+			return dr.squaredNorm() * wnn * wnn;
+		}
+		const ContactInfo& c = contacts.info[k];
+		const GeneralRow&  g = contacts.general[contacts.kernel[k]];
+		const Vector3r     U = localVelocity(k);
+		const Vector3r     b = c.A.cwiseProduct(U - c.W * r + c.s);
+		rNew                 = r;
+		status               = int(solveLocal(g.Wlaw, g.WlawInv, b, mu, rNew));
+		if (Relaxed && omega != 1 && status != int(ContactStatus::Open)) rNew = projectOnCone(r + omega * (rNew - r), mu);
+		const Vector3r dr = rNew - r;
+		applyImpulse(c, dr);
+		r       = rNew;
+		changed = status != before;
+		return dr.squaredNorm() * c.W(0, 0) * c.W(0, 0);
+	}
+
+	// Contacts [begin, end) updated in turn: returns Σ(W_NN|Δr|)², adds status changes to nChanged.
+	template <bool Relaxed> CD_HOT Real Solver::sweepRange(long begin, long end, Real omega, int& nChanged)
+	{
+		Real change = 0;
+		for (long k = begin; k < end; ++k) {
+			bool changed;
+			change += updateContact<Relaxed>(k, omega, changed);
+			nChanged += changed;
+		}
+		return change;
+	}
+
+	// One sweep in the schedule's order. Every range's sum is stored and the sums added range by
+	// range afterwards: the result, bit for bit, does not depend on the number of threads.
+	template <bool Relaxed> Real Solver::sweep(Real omega, int& nChanged)
+	{
+		order.run([&](int i, long begin, long end) {
+			int n          = 0;
+			rangeChange[i] = sweepRange<Relaxed>(begin, end, omega, n);
+			rangeStatus[i] = n;
+		});
+		Real change = 0;
+		nChanged    = 0;
+		for (int i = 0; i < order.ranges(); ++i) {
+			change += rangeChange[i];
+			nChanged += rangeStatus[i];
+		}
+		return change;
+	}
+
+	// ------------------------------------------------------------------------- stage 6: the solve
+
+	// Relative residual: sqrt(Σ|e_α|²)/‖q‖, e_α the natural-map residual in velocity units
+	// (ρ_α = 1/W̃_NN,α for the law's own block A·W); counts sticking and sliding contacts.
+	Real Solver::residual(SolveStats& stats) const
+	{
+		Real sum        = 0;
+		stats.nSticking = stats.nSliding = 0;
+		for (size_t k = 0; k < contacts.size(); ++k) {
+			Vector3r Ulaw;
+			Real     rho;
+			if (contacts.kernel[k] < 0) {
+				const SphereRow& c = contacts.sphere[k];
+				Ulaw               = c.A.cwiseProduct(sphereVelocity(c)) + c.bias;
+				rho                = 1 / c.Wd[0];
+			} else {
+				const ContactInfo& c = contacts.info[k];
+				Ulaw                 = c.A.cwiseProduct(localVelocity(long(k)) + c.s);
+				rho                  = 1 / contacts.general[contacts.kernel[k]].Wlaw(0, 0);
+			}
+			sum += naturalMapResidual(contacts.r[k], Ulaw, contacts.mu[k], rho).squaredNorm();
+			if (contacts.status[k] == int(ContactStatus::Sticking)) ++stats.nSticking;
+			if (contacts.status[k] == int(ContactStatus::Sliding)) ++stats.nSliding;
+		}
+		const Real scale = qNorm > 0 ? qNorm : Real(1);
+		return math::sqrt(sum) / scale;
+	}
+
+	// Nonlinear Gauss–Seidel over contacts, accelerated by Nesterov's momentum with adaptive
+	// restart. Stops when the exact residual is below the tolerance, or after maxIter sweeps.
+	SolveStats Solver::solve(const Params& p)
+	{
+		SolveStats stats;
+		for (size_t k = 0; k < contacts.size(); ++k)
+			applyImpulse(contacts.info[k], contacts.r[k]); // warm start, in height order
+		if (contacts.size() == 0) {
+			order.build(Schedule::Height, contacts, records, p.slabs, p.up);
+			return stats;
+		}
+		stats.converged  = false;
+		const Real scale = qNorm > 0 ? qNorm : Real(1);
+		Real       omega = p.relaxation, bestChange = std::numeric_limits<Real>::infinity();
+		int        stalled = 0;
+		order.build(p.schedule, contacts, records, p.slabs, p.up);
+		stats.nColours   = order.nColours;
+		stats.nInterface = order.nInterface;
+		rangeChange.assign(order.ranges(), 0);
+		rangeStatus.assign(order.ranges(), 0);
+		if (p.momentum) startMomentum();
+		// Momentum restarts when a sweep changes the velocities more than restartGrowth times the
+		// sweep before. 1.2 rather than 1 lets momentum ride through small bumps (measured on pile
+		// steps: 109 and 178 sweeps against 313 and 234 with 1); the stall guard below falls back to 1.
+		Real       tNesterov = 1, lastChange = std::numeric_limits<Real>::infinity(), restartGrowth = 1.2;
+		const bool relaxed   = p.relaxation != 1;
+		for (int it = 1; it <= p.maxIter; ++it) {
+			// Σ (W_NN |Δr|)²: the velocity changes this sweep made
+			const Real change = relaxed ? sweep<true>(omega, stats.nStatusChanges) : sweep<false>(omega, stats.nStatusChanges);
+			stats.iterations  = it;
+			// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
+			// are below the tolerance (a converged state barely changes), or when asked to record.
+			const bool quiet = math::sqrt(change) <= p.tolerance * scale;
+			// Over-relaxation and a lenient momentum restart are not safe with friction: once the
+			// sweeps stop contracting (the smallest change so far not improved by 1% for 50 sweeps),
+			// finish the step with ω = 1 and momentum restarted at every growth.
+			if (change < 0.99 * bestChange) {
+				bestChange = change;
+				stalled    = 0;
+			} else if (++stalled >= 50 && (omega != 1 || restartGrowth != 1)) {
+				omega         = 1;
+				restartGrowth = 1;
+				tNesterov     = 1;
+			}
+			if (it == p.maxIter || ((quiet || p.recordResidual) && it % p.checkEvery == 0)) {
+				stats.residual = residual(stats);
+				if (p.recordResidual) stats.residualHistory.push_back(stats.residual);
+				if (stats.residual <= p.tolerance) {
+					stats.converged = true;
+					break;
+				}
+			}
+			if (p.momentum && it < p.maxIter) {
+				// adaptive restart: a sweep that changed clearly more than the one before ends the momentum
+				if (change > restartGrowth * lastChange) tNesterov = 1;
+				lastChange      = change;
+				const Real next = (1 + math::sqrt(1 + 4 * tNesterov * tNesterov)) / 2;
+				extrapolate((tNesterov - 1) / next);
+				tNesterov = next;
+			}
+		}
+		return stats;
+	}
+
+	// Nesterov momentum over whole sweeps. The velocities are affine in the impulses,
+	// V(r) = u_free + M⁻¹ H r, so the start of the next sweep, y = x_k + β (x_k − x_{k−1}), has
+	// velocities V(x_k) + β (V(x_k) − V(x_{k−1})): one pass over bodies. Where y leaves a contact's
+	// cone it is projected, and the projection's impulse is applied to the two bodies.
+	void Solver::startMomentum()
+	{
+		rPrev = contacts.r;
+		vPrev.resize(bodies.size());
+		wPrev.resize(bodies.size());
+		for (size_t b = 0; b < bodies.size(); ++b) {
+			vPrev[b] = bodies[b].v;
+			wPrev[b] = bodies[b].w;
+		}
+	}
+
+	void Solver::extrapolate(Real beta)
+	{
+		const long nb = long(bodies.size());
+#pragma omp parallel for schedule(static) if (nb >= 4096)
+		for (long b = 0; b < nb; ++b) { // obstacles: v = vPrev (never written), unchanged
+			Body&          B = bodies[b];
+			const Vector3r v = B.v, w = B.w;
+			B.v += beta * (v - vPrev[b]);
+			B.w += beta * (w - wPrev[b]);
+			vPrev[b] = v;
+			wPrev[b] = w;
+		}
+		order.run([&](int, long begin, long end) { extrapolateRange(begin, end, beta); });
+	}
+
+	// The contact part of the extrapolation for contacts [begin, end): y = x + β(x − x_prev); where
+	// y leaves the cone, its projection, whose impulse is applied to the two bodies.
+	void Solver::extrapolateRange(long begin, long end, Real beta)
+	{
+		for (long k = begin; k < end; ++k) {
+			Vector3r&      r = contacts.r[k];
+			const Vector3r x = r;
+			if (x == rPrev[k]) continue; // unchanged (open contacts mostly): y = x
+			if (beta == 0) {             // a restart: y = x, already in its cone
+				rPrev[k] = x;
+				continue;
+			}
+			const Vector3r y  = x + beta * (x - rPrev[k]);
+			const Real     mu = contacts.mu[k];
+			rPrev[k]          = x;
+			r                 = y;
+			if (y[0] >= 0 && y[1] * y[1] + y[2] * y[2] <= mu * mu * y[0] * y[0]) continue; // inside the cone
+			r = projectOnCone(y, mu);
+			if (contacts.kernel[k] < 0) applySphereImpulse(contacts.sphere[k], r - y);
+			else
+				applyImpulse(contacts.info[k], r - y);
+		}
+	}
+
+	// ------------------------------------------------------------------------- stage 7: correction
+
+	// Pseudo-velocities during the correction: translations in pseudoV, rotations in the records
+	// (only general rows make them).
+	Vector3r Solver::localPseudoVelocity(const ContactInfo& c) const
+	{
+		return c.frame * ((pseudoV[c.b2] + records[c.b2].pw.cross(c.c2)) - (pseudoV[c.b1] + records[c.b1].pw.cross(c.c1)));
+	}
+
+	void Solver::applyPseudoImpulse(const ContactInfo& c, Real dP)
+	{
+		const Vector3r P = c.frame.row(0).transpose() * dP;
+		if (records[c.b2].dynamic) {
+			pseudoV[c.b2] += bodies[c.b2].invM.cwiseProduct(P);
+			records[c.b2].pw += bodies[c.b2].invI * c.c2.cross(P);
+		}
+		if (records[c.b1].dynamic) {
+			pseudoV[c.b1] -= bodies[c.b1].invM.cwiseProduct(P);
+			records[c.b1].pw -= bodies[c.b1].invI * c.c1.cross(P);
+		}
+	}
+
+	// One correction sweep over rows [begin, end), forwards or backwards: returns the largest
+	// overlap beyond its allowance met (relative) before each row's update.
+	Real Solver::correctionRange(long begin, long end, bool forward)
+	{
+		Real worst = 0;
+		for (long j = begin; j < end; ++j) {
+			const long     k   = forward ? j : end - 1 - (j - begin);
+			CorrectionRow& row = corrections[k];
+			// normal pseudo-velocity; for a sphere row rotations never enter it (the lever arm is
+			// along n) and a normal pseudo-impulse never makes them
+			const Real un   = row.sphere ? row.n.dot(pseudoV[row.b2] - pseudoV[row.b1]) : localPseudoVelocity(contacts.info[k])[0];
+			const Real v    = row.overlap - row.lag * un; // > 0: overlap beyond the allowance
+			worst           = math::max(worst, v);
+			const Real Pnew = math::max(Real(0), row.P + row.gain * v);
+			const Real dP   = Pnew - row.P;
+			if (dP != 0) {
+				if (row.sphere) {
+					if (row.m2 > 0) pseudoV[row.b2] += row.m2 * dP * row.n;
+					if (row.m1 > 0) pseudoV[row.b1] -= row.m1 * dP * row.n;
+				} else
+					applyPseudoImpulse(contacts.info[k], dP);
+			}
+			row.P = Pnew;
+		}
+		return worst;
+	}
+
+	// The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from normal pseudo-impulses P ≥ 0
+	// that move positions but never velocities. Target: g_f ≥ −a, a the contact's overlap
+	// allowance. Such overlaps are kept, so a packing at rest stays exactly at rest; the overlap
+	// that steps create (by the half-step predictor after a landing, or an unconverged solve) is
+	// removed, over several steps if the correction stops at maxProjectionIter. Projected
+	// Gauss–Seidel, frictionless, in the solve's schedule with alternating directions.
+	CorrectionStats Solver::correct(const Params& p)
+	{
+		CorrectionStats stats;
+		const Real      h  = p.h;
+		const long      nc = long(contacts.size());
+		corrections.resize(nc);
+		for (long k = 0; k < nc; ++k) { // the velocity part of the end-of-step gap is fixed now
+			const ContactInfo& c   = contacts.info[k];
+			CorrectionRow&     row = corrections[k];
+			row.overlap            = (-c.allowance - c.gapM - 0.5 * h * localVelocity(k)[0]) / c.refR;
+			stats.maxOverlap       = math::max(stats.maxOverlap, row.overlap);
+		}
+		if (stats.maxOverlap <= p.positionTolerance) return stats;
+		for (long k = 0; k < nc; ++k) {
+			const ContactInfo& c   = contacts.info[k];
+			CorrectionRow&     row = corrections[k];
+			row.lag                = 0.5 * h / c.refR;
+			row.gain               = (2 / h) * c.refR / c.W(0, 0);
+			row.P                  = 0;
+			row.sphere             = contacts.kernel[k] < 0;
+			row.b1 = c.b1, row.b2 = c.b2;
+			if (row.sphere) {
+				const SphereRow& f = contacts.sphere[k];
+				row.n = f.n, row.m1 = f.m1, row.m2 = f.m2;
+			}
+		}
+		pseudoV.assign(bodies.size(), Vector3r::Zero());
+		std::vector<Real>& rangeWorst = rangeChange;
+		for (int it = 1; it <= p.maxProjectionIter; ++it) {
+			const bool forward = it % 2 == 1; // alternating directions
+			auto       pass    = [&](int i, long begin, long end) { rangeWorst[i] = correctionRange(begin, end, forward); };
+			if (forward) order.run(pass);
+			else
+				order.runBackwards(pass);
+			Real worst = 0;
+			for (int i = 0; i < order.ranges(); ++i)
+				worst = math::max(worst, rangeWorst[i]);
+			stats.iterations = it;
+			if (worst <= p.positionTolerance) break;
+		}
+		for (size_t b = 0; b < bodies.size(); ++b)
+			records[b].pv = pseudoV[b];
+		return stats;
+	}
+
+	// ------------------------------------------------------------------------- export
+
+	// The law's Delassus matrix W as COO triplets, blocks A_a F_a K_ab F_bᵀ with
+	// K_ab = s_a s_b (diag(1/m) − [c_a]x I⁻¹ [c_b]x) summed over the bodies contacts a and b share
+	// (s = +1 on body 2, −1 on body 1).
+	void Solver::delassusTriplets(std::vector<long>& rows, std::vector<long>& cols, std::vector<double>& vals) const
+	{
+		std::vector<std::vector<std::pair<int, int>>> incident(bodies.size()); // (contact, side)
+		for (size_t a = 0; a < contacts.size(); ++a) {
+			const ContactInfo& c = contacts.info[a];
+			if (records[c.b1].dynamic) incident[c.b1].push_back({ int(a), 0 });
+			if (records[c.b2].dynamic) incident[c.b2].push_back({ int(a), 1 });
+		}
+		for (size_t id = 0; id < bodies.size(); ++id) {
+			const Body& body = bodies[id];
+			for (const auto& [a, sa] : incident[id])
+				for (const auto& [b, sb] : incident[id]) {
+					const ContactInfo &ca = contacts.info[a], &cb = contacts.info[b];
+					const Real         sign = (sa ? 1 : -1) * (sb ? 1 : -1);
+					const Matrix3r     K    = sign * (Matrix3r(body.invM.asDiagonal()) - skew(sa ? ca.c2 : ca.c1) * body.invI * skew(sb ? cb.c2 : cb.c1));
+					const Matrix3r     Wab  = ca.A.asDiagonal() * (ca.frame * K * cb.frame.transpose());
+					for (int i = 0; i < 3; ++i)
+						for (int j = 0; j < 3; ++j) {
+							rows.push_back(3 * a + i);
+							cols.push_back(3 * b + j);
+							vals.push_back(double(Wab(i, j)));
+						}
+				}
+		}
+	}
+
+} // namespace cd
+} // namespace yade
