@@ -13,15 +13,13 @@ the mean diameter at the end. Writes OUT/compare_pile.csv, OUT/compare_pile.png 
 to docs/data and docs/figures with --docs.
 """
 import argparse
-import csv
-import json
 import os
-import shutil
 import sys
 
-import numpy as np
-
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))  # inside YADE __file__ is the yade executable
+sys.path.insert(0, os.path.join(REPO, 'py'))   # this repository's yadecd, ahead of the installed copy
+from yadecd import compare_pile  # noqa: E402
+
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--grains', type=int, default=300)
 parser.add_argument('--relax', type=float, default=0.5)
@@ -30,104 +28,4 @@ parser.add_argument('--out', default=os.path.join(REPO, 'out', 'compare_pile'))
 parser.add_argument('--cases', default='cd,cd_plain,cd_loose,md_1e6,md_1e7,md_1e8')
 parser.add_argument('--plot-only', action='store_true', help='redraw from OUT/compare_pile.csv')
 parser.add_argument('--docs', action='store_true', help='copy the CSV and figure into docs/')
-args = parser.parse_args(sys.argv[1:])
-
-CASES = {
-    'cd': ('CD, tolerance 1e-3', dict(method='CD', tolerance=1e-3)),
-    'cd_plain': ('CD, tolerance 1e-3, plain Gauss–Seidel', dict(method='CD', tolerance=1e-3, momentum=False)),
-    'cd_loose': ('CD, tolerance 1e-2', dict(method='CD', tolerance=1e-2)),
-    'md_1e6': ('MD linear, E = 1e6 Pa', dict(method='MD', young=1e6)),
-    'md_1e7': ('MD linear, E = 1e7 Pa', dict(method='MD', young=1e7)),
-    'md_1e8': ('MD linear, E = 1e8 Pa', dict(method='MD', young=1e8)),
-}
-FIELDS = ['case', 'label', 'method', 'young_Pa', 'dt_s', 'steps', 'wall_s', 'wall_per_sim_s', 'grains', 'contacts',
-          'slope_deg', 'slope_err_deg', 'chord_angle_deg', 'slope_ls_window_deg', 'H_cm', 'p_center_dPa', 'p_center_err_dPa', 'p_peak_dPa', 'p_peak_radius_cm',
-          'hydrostatic_dPa', 'p_center_over_hydrostatic', 'floor_load_over_weight', 'overlap_max_over_d',
-          'overlap_mean_over_d', 'unconverged_steps']
-csv_path = os.path.join(args.out, 'compare_pile.csv')
-
-
-def overlaps():
-    """Largest and mean overlap of grain–grain contacts over the mean diameter [-]."""
-    from yade import O
-    from yade.wrapper import Sphere
-    d = 2 * np.mean([b.shape.radius for b in O.bodies if isinstance(b.shape, Sphere)])
-    pen = [max(0.0, i.geom.penetrationDepth) for i in O.interactions
-           if i.isReal and isinstance(O.bodies[i.id1].shape, Sphere) and isinstance(O.bodies[i.id2].shape, Sphere)]
-    return (max(pen) / d, np.mean(pen) / d) if pen else (0.0, 0.0)
-
-
-def run_case(key):
-    from yade import O
-    from yadecd import pile, pile_figures
-    label, opts = CASES[key]
-    run_dir = os.path.join(args.out, key)
-    shutil.rmtree(run_dir, ignore_errors=True)
-    p = pile.run(run_dir, n_grains=args.grains, relax=args.relax, seed=args.seed, snap_every=1e9, **opts)
-    omax, omean = overlaps()
-    s = pile_figures.analyse(run_dir, os.path.join(run_dir, 'figures'))
-    sim = O.time
-    return dict(case=key, label=label, method=p['method'], young_Pa=p['young'] if p['method'] == 'MD' else '',
-                dt_s=p['dt'], steps=O.iter, wall_s=p['wall_time_s'], wall_per_sim_s=p['wall_time_s'] / sim,
-                grains=s['n_pile_grains'], contacts=s['n_contacts'], slope_deg=s['slope_deg'],
-                slope_err_deg=s['slope_err_deg'], chord_angle_deg=s['chord_angle_deg'],
-                slope_ls_window_deg=s['slope_ls_window_deg'], H_cm=s['H_cm'], p_center_dPa=s['p_center_dPa'],
-                p_center_err_dPa=s['p_center_err_Pa'] * 10, p_peak_dPa=s['p_peak_dPa'],
-                p_peak_radius_cm=s['p_peak_radius_cm'], hydrostatic_dPa=s['hydrostatic_dPa'],
-                p_center_over_hydrostatic=s['p_center_over_hydrostatic'],
-                floor_load_over_weight=s['floor_load_over_weight'], overlap_max_over_d=omax,
-                overlap_mean_over_d=omean, unconverged_steps=p['unconverged_steps'])
-
-
-def plot(rows):
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6))
-    for row in rows:
-        with open(os.path.join(args.out, row['case'], 'figures', 'summary.json')) as f:
-            s = json.load(f)
-        prof = s.get('rings') or {}
-        r, p = prof.get('r_mid_m'), prof.get('pressure_Pa')
-        if r and p:
-            a1.plot(np.array(r) * 100, np.array(p) * 10 / float(row['hydrostatic_dPa']), 'o-', ms=3, label=row['label'])
-    a1.axhline(1, color='k', lw=0.8, ls=':')
-    a1.set_xlabel('r [cm]')
-    a1.set_ylabel('ground pressure / hydrostatic ρ_bulk g H')
-    a1.set_title('Ground pressure, %d-grain pile' % args.grains)
-    a1.legend(fontsize=8)
-    for row in rows:
-        marker = 's' if row['method'] == 'CD' else 'o'
-        a2.loglog(float(row['wall_per_sim_s']), max(float(row['overlap_max_over_d']), 1e-7), marker, ms=8, label=row['label'])
-    a2.set_xlabel('wall time per simulated second [s]')
-    a2.set_ylabel('largest overlap / mean diameter')
-    a2.set_title('Cost against interpenetration')
-    a2.legend(fontsize=8)
-    fig.tight_layout()
-    path = os.path.join(args.out, 'compare_pile.png')
-    fig.savefig(path, dpi=120)
-    print('wrote', path)
-    return path
-
-
-os.makedirs(args.out, exist_ok=True)
-if args.plot_only:
-    with open(csv_path) as f:
-        rows = list(csv.DictReader(f))
-else:
-    rows = []
-    with open(csv_path, 'w', newline='') as f:
-        csv.DictWriter(f, fieldnames=FIELDS).writeheader()
-    for key in [k for k in args.cases.split(',') if k]:
-        if key not in CASES:
-            raise SystemExit('unknown case %r (known: %s)' % (key, ', '.join(CASES)))
-        print('=== %s' % CASES[key][0], flush=True)
-        row = run_case(key)
-        rows.append({k: str(v) for k, v in row.items()})
-        with open(csv_path, 'a', newline='') as f:
-            csv.DictWriter(f, fieldnames=FIELDS).writerow(row)
-        print('  ' + ', '.join('%s=%s' % (k, ('%.4g' % v) if isinstance(v, float) else v) for k, v in row.items()), flush=True)
-png = plot(rows)
-if args.docs:
-    shutil.copy(csv_path, os.path.join(REPO, 'docs', 'data', 'compare_pile.csv'))
-    shutil.copy(png, os.path.join(REPO, 'docs', 'figures', 'compare_pile.png'))
+sys.exit(compare_pile.main(parser.parse_args(sys.argv[1:]), REPO))

@@ -1,22 +1,42 @@
 """The core tier (tests/core/*.cpp, built as cd_core_tests by the top-level CMake): the solver's
-YADE-independent parts checked against exact solutions without running YADE. This test runs the
-binary so that the README's test command includes it, and fails (not skips) when it is missing."""
+YADE-independent parts checked without running YADE, against exact solutions and the engine's
+own saved steps (tests/data/core). This test runs the binary so that the README's test command
+includes it, and fails (not skips) when it is missing; it also runs the core benchmark
+(cd_core_bench) once on a saved step, so that a broken benchmark is noticed (its times are not
+checked: benchmarks are not tests)."""
 import os
+import re
 import subprocess
 import unittest
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BINARY = os.path.join(REPO, 'build', 'cd_core_tests')
+BUILD = os.path.join(REPO, 'build')
+DATA = os.path.join(REPO, 'tests', 'data', 'core')
 
 
 class TestCore(unittest.TestCase):
 
+    def binary(self, name):
+        path = os.path.join(BUILD, name)
+        self.assertTrue(os.path.exists(path), '%s is missing: run scripts/setup.sh (it builds the plugin, the core tests '
+                                              'and the core benchmark)' % path)
+        return path
+
     def test_core_tier(self):
-        self.assertTrue(os.path.exists(BINARY), '%s is missing: run scripts/setup.sh (it builds the plugin and the '
-                                                'core tests)' % BINARY)
-        proc = subprocess.run([BINARY], capture_output=True, text=True, timeout=120)
+        proc = subprocess.run([self.binary('cd_core_tests'), DATA], capture_output=True, text=True, timeout=600)
+        self.assertEqual(proc.returncode, 0, proc.stdout[-5000:] + proc.stderr[-2000:])
+        m = re.search(r'core: (\d+) passed, 0 failed', proc.stdout)
+        self.assertTrue(m, proc.stdout[-2000:])
+        self.assertGreater(int(m.group(1)), 500)  # every saved step under every option: hundreds of checks
+
+    def test_core_benchmark_runs(self):
+        proc = subprocess.run([self.binary('cd_core_bench'), os.path.join(DATA, 'fcc108_boxed.cdp'), '--k1', '2', '--k2', '4',
+                               '--repeat', '1'], capture_output=True, text=True, timeout=120)
         self.assertEqual(proc.returncode, 0, proc.stdout + proc.stderr)
-        self.assertRegex(proc.stdout, r'core: [1-9]\d* passed, 0 failed')
+        self.assertRegex(proc.stdout, r'time per contact-sweep: [0-9.]+ ns')
+        bad = subprocess.run([self.binary('cd_core_bench'), os.path.join(DATA, 'missing.cdp')], capture_output=True, text=True)
+        self.assertEqual(bad.returncode, 1)
+        self.assertIn('missing.cdp: cannot be opened', bad.stderr)
 
 
 if __name__ == '__main__':

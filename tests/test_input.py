@@ -36,9 +36,16 @@ class TestBadInput(unittest.TestCase):
             with self.assertRaises(ValueError) as cm:
                 ContactDynamicsIntegrator(**kw)
             self.assertIn(word, str(cm.exception))
+        for order in (0, 2, 3):  # retired schedules: refused with the reason
+            with self.assertRaises(ValueError) as cm:
+                ContactDynamicsIntegrator(sweepOrder=order)
+            self.assertIn('retired', str(cm.exception))
         cd = ContactDynamicsIntegrator()
         with self.assertRaises(ValueError):
             cd.tolerance = 0
+        scenes.column(2)  # a problem file that cannot be written fails the step, by name, changing nothing
+        yadecd.integrator().problemFile = '/nonexistent-dir/step.cdp'
+        self.assertStepFails(ValueError, 'problemFile', '/nonexistent-dir/step.cdp')
         for kw, word in ((dict(en=-0.1), 'en'), (dict(en=float('nan')), 'en'), (dict(en=1.5), 'en'), (dict(et=2), 'et')):
             with self.assertRaises(ValueError) as cm:
                 Ip2_FrictMat_FrictMat_CDPhys(**kw)

@@ -2,12 +2,14 @@
 // architecture, the contact law and the sign conventions).
 #include "ContactDynamicsIntegrator.hpp"
 #include "core/LocalSolver.hpp"
+#include "core/ProblemFile.hpp"
 #include "CDPhys.hpp"
 #include <core/Clump.hpp>
 #include <core/Scene.hpp>
 #include <pkg/dem/ScGeom.hpp>
 
 #include <algorithm>
+#include <fstream>
 #include <sstream>
 
 namespace yade {
@@ -134,12 +136,13 @@ void ContactDynamicsIntegrator::action()
 		updateContactFrames();        // 3
 		timingDeltas->checkpoint("updateContactFrames");
 		computeFreeVelocities();      // 4
-		core.assemble(params());      // 5
-		timingDeltas->checkpoint("assemble");
+		if (!problemFile.empty()) writeProblemFile();
+		assembleLocalProblems();      // 5
+		timingDeltas->checkpoint("assembleLocalProblems");
 		solveImpulses();              // 6
-		timingDeltas->checkpoint("solve");
+		timingDeltas->checkpoint("solveImpulses");
 		correctPositions();           // 7
-		timingDeltas->checkpoint("correct");
+		timingDeltas->checkpoint("correctPositions");
 		updatePositions();            // 8
 	} catch (...) {
 		restoreStartOfStep(); // a failed step leaves the scene as it found it
@@ -375,6 +378,18 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 		sb.w += h * sb.invI * T;
 	}
 }
+
+// The core's input of this step to problemFile (then cleared), for the core tests and benchmark.
+void ContactDynamicsIntegrator::writeProblemFile()
+{
+	std::ofstream f(problemFile);
+	if (f) cd::writeProblem(f, core, params());
+	if (!f) throw std::invalid_argument("ContactDynamicsIntegrator.problemFile='" + problemFile + "': cannot be written.");
+	problemFile.clear();
+}
+
+// Stage 5: the core's assembly of the local problems (Delassus blocks, law offsets, kernels).
+void ContactDynamicsIntegrator::assembleLocalProblems() { core.assemble(params()); }
 
 // Stage 6: the core's Gauss–Seidel solve; its statistics become this engine's attributes.
 void ContactDynamicsIntegrator::solveImpulses()

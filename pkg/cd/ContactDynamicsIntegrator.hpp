@@ -21,10 +21,10 @@
 //   2 predictPositions        q_m = q_i + h/2 u_i
 //   3 updateContactFrames     ScGeom recomputed at q_m by the contact's own Ig2 functor
 //   4 computeFreeVelocities   u_free = u_i + h M⁻¹ (F_ext + m g)
-//   5 core.assemble           local frame, Delassus block W_αα, law offsets per contact
-//   6 core.solve              nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
+//   5 assembleLocalProblems   (core) local frame, Delassus block W_αα, law offsets per contact
+//   6 solveImpulses           (core) nonlinear Gauss–Seidel over contacts (Signorini–Coulomb, exact cone),
 //                             in the order of a schedule (sweepOrder: by height, colours, slabs)
-//   7 core.correct            split projection: removes only the overlap that the step created,
+//   7 correctPositions        (core) split projection: removes only the overlap that the step created,
 //                             through pseudo-velocities that are never stored
 //   8 updatePositions         q_f = q_m + h/2 (u_f + ũ)
 //   9 storeResults            impulses (warm start), forces, O.forces, energy, collider hint
@@ -83,6 +83,8 @@ private:
 	void       predictPositions();
 	void       updateContactFrames();
 	void       computeFreeVelocities();
+	void       writeProblemFile();
+	void       assembleLocalProblems();
 	void       solveImpulses();
 	void       correctPositions();
 	void       updatePositions();
@@ -129,6 +131,7 @@ public:
 		((int, nInterface, 0, (Attr::readonly | Attr::noSave), "Contacts of the last step's slab sweep (sweepOrder 5) in the sequential interface between slabs. |yupdate|"))
 		((int, nColours, 0, (Attr::readonly | Attr::noSave), "Colours of the last step's coloured sweep (sweepOrder 4; 65 means some contacts fell in the sequential overflow group). |yupdate|"))
 		((vector<Real>, residualHistory, , Attr::readonly, "Residual after each checked sweep of the last step, if :yref:`recordResidual<ContactDynamicsIntegrator.recordResidual>`. |yupdate|"))
+		((string, problemFile, "", Attr::noSave, "Write the next step's problem (the solver core's input at stage 5: bodies with their free velocities, contacts with frames, gaps and warm starts, and the options) to this file, then clear the attribute. The core tests and ``cd_core_bench`` solve such files without YADE (format: pkg/cd/core/ProblemFile.hpp)."))
 		YADECD_THROWAWAY_ATTR
 		((int, contactDissipIx, -1, (Attr::hidden | Attr::noSave), "Energy index: contact dissipation."))
 		((int, extWorkIx, -1, (Attr::hidden | Attr::noSave), "Energy index: work of O.forces."))

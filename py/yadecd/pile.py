@@ -142,7 +142,7 @@ def set_engines(p):
                             warnUnconverged=False)
         O.dt = p['dt']
     elif method == 'MD':
-        from .compare import md_engines
+        from .md import md_engines
         for m in O.materials:
             m.young = p['young']
         O.engines = md_engines(gravity=(0, 0, -p['g']), law='linear', damping=p['md_damping'])
@@ -184,7 +184,7 @@ def scene_from_snapshot(path, **overrides):
     return p
 
 
-def cone_state(run_dir, n_grains=14000, slope_deg=22.0, settle=0.1, cell_grains=2000, log=print, **overrides):
+def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=2000, log=print, **overrides):
     """A large pile state for solver benchmarks, built in minutes instead of by deposition.
 
     Grains of the protocol's diameter law in a dense random packing (YADE's

@@ -7,12 +7,12 @@ import math
 
 from yade import O, utils
 from yade import Vector3
-from yade.wrapper import FrictMat
+from yade.wrapper import FrictMat, InteractionLoop
 
-from . import engines
+from . import engines, integrator
 
 __all__ = ['material', 'sphere_on_plane', 'column', 'tetrahedron', 'binary_collision',
-           'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing', 'fcc_block']
+           'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing', 'fcc_block', 'cradle', 'set_cd']
 
 
 def material(mu, density=1000.0, label=None):
@@ -154,10 +154,12 @@ def random_loose_packing(n=30, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, **opt
     return {'ids': ids}
 
 
-def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, **opts):
+def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, boxed=False, **opts):
     """A block of about ``n_target`` equal spheres on a face-centred cubic lattice resting on the
     wall z=0, each touching its 12 lattice neighbours (6 contacts per sphere): a dense,
-    hyperstatic contact network of any size, built instantly; the benchmark packings.
+    hyperstatic contact network of any size, built instantly; the benchmark packings. A free
+    block is not in equilibrium (its sides spread); ``boxed=True`` adds four walls touching its
+    sides, and the block then rests: the floor carries exactly its weight.
     Returns ``{'ids': [...]}``."""
     O.reset()
     mat = material(mu)
@@ -172,6 +174,57 @@ def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, **opts):
                 for bx, by, bz in basis:
                     c = (r + a * (i + bx), r + a * (j + by), r + a * (k + bz))
                     ids.append(O.bodies.append(utils.sphere(c, r, material=mat)))
+    if boxed:  # walls through the outermost sphere surfaces: x, y = 0 and 2r + a(side − 1/2)
+        for ax in (0, 1):
+            O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
+            O.bodies.append(utils.wall(2 * r + a * (side - 0.5), axis=ax, sense=-1, material=mat))
     O.engines = engines(gravity=(0, 0, -9.81), **opts)
     O.dt = dt
     return {'ids': ids}
+
+
+def cradle(n=5, r=0.01, v=1.0, gap_ratio=0.1, en=1.0, dt=1e-4, density=1000.0, mu=0.3):
+    """A Newton's cradle without strings: ``n`` equal spheres in a row along x, ``gap_ratio``·r
+    apart, no gravity; the first moves at ``v`` towards the others. With gaps the collisions are
+    successive binary ones: for e_n = 1 the last sphere leaves at ``v``, the others stop. The
+    impacts are head-on, so friction plays no part; ``mu`` defaults to 0.3 because with μ = 0
+    plugin builds before 0c434f6 never converged next to an open gap contact (see
+    docs/compare.md)."""
+    O.reset()
+    mat = material(mu, density)
+    step = 2 * r + gap_ratio * r
+    ids = [O.bodies.append(utils.sphere((k * step, 0, 0), r, material=mat)) for k in range(n)]
+    O.bodies[ids[0]].state.vel = Vector3(v, 0, 0)
+    O.engines = engines(gravity=(0, 0, 0), en=en, tolerance=1e-12)
+    O.dt = dt
+    return {'ids': ids, 'r': r, 'v': v, 'gap': gap_ratio * r}
+
+
+def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=1.0, momentum=False, **options):
+    """Adjust the CD scene just built: time step, solver tolerance and maxIter, over-relaxation
+    and momentum (pinned to 1 and off, plain Gauss–Seidel, unless given: the installed plugin's
+    defaults may differ; ``None`` keeps the plugin's default),
+    restitution of contacts not yet created, other integrator attributes; unconverged-step
+    warnings are silenced (they are counted in ``nUnconverged``, which :func:`run` reports)."""
+    if relaxation is not None:
+        options['relaxation'] = relaxation
+    if momentum is not None:
+        options['momentum'] = momentum
+    cd = integrator()
+    if dt is not None:
+        O.dt = dt
+    if tolerance is not None:
+        cd.tolerance = tolerance
+    if maxIter is not None:
+        cd.maxIter = int(maxIter)
+    cd.warnUnconverged = False
+    for k, v in options.items():
+        setattr(cd, k, v)
+    for e in O.engines:
+        if isinstance(e, InteractionLoop):
+            for f in e.physDispatcher.functors:
+                if en is not None:
+                    f.en = en
+                if et is not None:
+                    f.et = et
+    return cd

@@ -54,6 +54,7 @@ parser.add_argument('--feed', action='store_true',
 parser.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'solver_bench.csv'))
 parser.add_argument('--quick', action='store_true', help='fewer sweeps (a smoke run)')
 parser.add_argument('--no-siconos', action='store_true')
+parser.add_argument('--no-block-steps', action='store_true', help='on the blocks, only the per-sweep figures (no step breakdown, no determinism run)')
 args = parser.parse_args(sys.argv[1:])
 
 PILE_VARIANTS = {  # the default row ('CD') is the pile's default solver: momentum, slab sweep
@@ -207,6 +208,8 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
         ts = per_sweep(lambda k: siconos_time(pb, k))
         record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='Siconos NSGS', quantity='time per contact-sweep', value=ts / n * 1e9, unit='ns')
         print('  Siconos/CD time per contact-sweep: %.2f' % (ts / t))
+    if args.no_block_steps:
+        continue
     breakdown('fcc_block', 3 if args.quick else 10)
     # determinism: a fixed coloured run from the same scene, hashed (compare across -j)
     scenes.fcc_block(target / 6.2, warnUnconverged=False, sweepOrder=4, maxIter=200)

@@ -1,7 +1,6 @@
 // Core tier: the local Signorini–Coulomb solver (pkg/cd/core/LocalSolver.hpp) checked without
-// running YADE, against exact solutions. Built by the top-level CMake as `cd_core_tests`; run by
-// tests/test_core.py (so by the README's test command). Prints one line per failed check and a
-// summary line "core: N passed, M failed"; exits non-zero when a check fails.
+// running YADE, against exact solutions.
+#include "check.hpp"
 #include "core/LocalSolver.hpp"
 
 #include <cstdio>
@@ -11,18 +10,9 @@
 using namespace yade;
 using cd::ContactStatus;
 
+using cdtest::check;
+
 namespace {
-
-int passed = 0, failed = 0;
-
-void check(bool ok, const std::string& what)
-{
-	if (ok) ++passed;
-	else {
-		++failed;
-		std::printf("FAILED: %s\n", what.c_str());
-	}
-}
 
 Real maxAbs(const Vector3r& v) { return v.cwiseAbs().maxCoeff(); }
 
@@ -136,7 +126,7 @@ void testRandomCoupled(unsigned seed, double coupling, double muMax)
 
 } // namespace
 
-int main()
+void cdtest::localSolverTests()
 {
 	testOpen();
 	testSticking();
@@ -147,6 +137,4 @@ int main()
 		testRandomCoupled(7, coupling, 1.0);
 		testRandomCoupled(13, coupling, 2.0);
 	}
-	std::printf("core: %d passed, %d failed\n", passed, failed);
-	return failed ? 1 : 0;
 }

@@ -13,6 +13,7 @@ namespace cd {
 	void Schedule::build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up)
 	{
 		nColours = nInterface = 0;
+		sumPerContact         = false;
 		switch (kind) {
 			case Height: byHeight(long(set.size())); break;
 			case Colours: colours(set, records); break;
@@ -64,16 +65,19 @@ namespace cd {
 				return ca.b1 < cb.b1 || (ca.b1 == cb.b1 && ca.b2 < cb.b2);
 			});
 		set.permute(order);
-		// every contact its own range; one stage per non-empty colour
-		bounds.resize(nc + 1);
-		for (long k = 0; k <= nc; ++k)
-			bounds[k] = k;
+		// one stage per non-empty colour, cut into ranges of at most maxRange contacts
+		constexpr long maxRange = 256;
+		bounds.assign(1, 0);
 		stages.clear();
 		for (int c = 0; c <= maxColours; ++c) {
 			if (!count[c]) continue;
-			stages.push_back(Stage { int(start[c]), int(start[c + 1]), c < maxColours && count[c] >= minParallelColour });
+			const int first = ranges();
+			for (long b = start[c]; b < start[c + 1]; b += maxRange)
+				bounds.push_back(std::min(b + maxRange, start[c + 1]));
+			stages.push_back(Stage { first, ranges(), c < maxColours && count[c] >= minParallelColour });
 			nColours = c + 1;
 		}
+		sumPerContact = true;
 	}
 
 	// Slabs: the contact points cut, across the wider horizontal extent, into ns slabs of equal

@@ -5,14 +5,16 @@
 // body, so a parallel stage runs its ranges on several threads at once, each range in order.
 // Every pass over the contacts (the sweep, the momentum extrapolation, the position
 // correction) runs through Schedule::run, so they all follow one order and one OpenMP pattern.
-// Sums over a pass are taken range by range in a fixed order: results are bit-identical for any
-// thread count.
+// Sums over a pass are taken range by range (or contact by contact) in a fixed order: results
+// are bit-identical for any thread count.
 //
 // Strategies (the integrator's sweepOrder):
 //   Height  (1)  one range, the contacts upwards by height: a load change at the floor travels up
 //                the whole stack in one sweep. The default.
 //   Colours (4)  contacts grouped into colours that share no dynamic body (greedy, in height
-//                order), one stage per colour, every contact its own range.
+//                order), one stage per colour, cut into ranges of at most 256 contacts (any cut
+//                gives the same result: contacts of a colour commute, and sums are taken contact
+//                by contact).
 //   Slabs   (5)  vertical slabs of equal contact counts across the wider horizontal extent; the
 //                contacts inside a slab form one range, all slabs one parallel stage, followed by
 //                the interface (contacts of bodies touching two slabs), one serial range.
@@ -34,6 +36,7 @@ namespace cd {
 		};
 		std::vector<long>  bounds; // range i is contacts [bounds[i], bounds[i+1])
 		std::vector<Stage> stages;
+		bool               sumPerContact = false; // sums over a pass are taken contact by contact (Colours), not range by range
 		int                nColours = 0;   // Colours: colours used (65: an overflow group exists)
 		int                nInterface = 0; // Slabs: contacts in the serial interface
 

@@ -233,17 +233,32 @@ namespace cd {
 		return change;
 	}
 
-	// One sweep in the schedule's order. Every range's sum is stored and the sums added range by
-	// range afterwards: the result, bit for bit, does not depend on the number of threads.
+	// One sweep in the schedule's order. Every range's sum (or every contact's change, for
+	// schedules that sum contact by contact) is stored and the sums added in order afterwards:
+	// the result, bit for bit, does not depend on the number of threads.
 	template <bool Relaxed> Real Solver::sweep(Real omega, int& nChanged)
 	{
+		Real change = 0;
+		nChanged    = 0;
+		if (order.sumPerContact) {
+			order.run([&](int, long begin, long end) {
+				for (long k = begin; k < end; ++k) {
+					bool changed;
+					contactChange[k] = updateContact<Relaxed>(k, omega, changed);
+					contactStatus[k] = changed;
+				}
+			});
+			for (size_t k = 0; k < contacts.size(); ++k) {
+				change += contactChange[k];
+				nChanged += contactStatus[k];
+			}
+			return change;
+		}
 		order.run([&](int i, long begin, long end) {
 			int n          = 0;
 			rangeChange[i] = sweepRange<Relaxed>(begin, end, omega, n);
 			rangeStatus[i] = n;
 		});
-		Real change = 0;
-		nChanged    = 0;
 		for (int i = 0; i < order.ranges(); ++i) {
 			change += rangeChange[i];
 			nChanged += rangeStatus[i];
@@ -299,6 +314,10 @@ namespace cd {
 		stats.nInterface = order.nInterface;
 		rangeChange.assign(order.ranges(), 0);
 		rangeStatus.assign(order.ranges(), 0);
+		if (order.sumPerContact) {
+			contactChange.assign(contacts.size(), 0);
+			contactStatus.assign(contacts.size(), 0);
+		}
 		if (p.momentum) startMomentum();
 		// Momentum restarts when a sweep changes the velocities more than restartGrowth times the
 		// sweep before. 1.2 rather than 1 lets momentum ride through small bumps (measured on pile

@@ -45,6 +45,8 @@ namespace cd {
 		Schedule              order;
 		std::vector<Real>     rangeChange;  // per range, the sweep's Σ(W_NN|Δr|)²
 		std::vector<int>      rangeStatus;  // per range, status changes
+		std::vector<Real>     contactChange; // per contact, the sweep's (W_NN|Δr|)² (schedules summing per contact)
+		std::vector<char>     contactStatus; // per contact, whether its status changed
 		std::vector<Real>     qShare;       // per contact, its share of ‖q‖²
 		std::vector<Vector3r> rPrev;        // momentum: impulses after the previous sweep
 		std::vector<Vector3r> vPrev, wPrev; // momentum: body velocities after the previous sweep

@@ -1,0 +1,269 @@
+// Core tier: the solver core (pkg/cd/core/Solver.hpp) on saved steps (tests/data/core/*.cdp,
+// written by YADE through ContactDynamicsIntegrator.problemFile; scripts/core_problems.py makes
+// them), without YADE. For every file:
+//
+//  1. the engine's own step, reproduced: solved with the options it was saved with, the core
+//     gives the impulses, velocities and sweep count that YADE's engine gave, bit for bit;
+//  2. a grid of options (schedules height, colours, slabs × momentum on/off × sphere/general
+//     kernel), each solved tightly (1e-10, or the file's grid_tolerance), checked against the law in matrix form: Ũ = W r + q with W
+//     from delassusTriplets and q from the free velocities, the natural-map residual of every
+//     contact (an evaluation independent of the sweep's kernels), against the file's exact
+//     answers (`expect_impulse`, `expect_load`), and the velocities against those of the first
+//     option (the same step solved in another order converges to the same motion);
+//  3. the file written back is the file read.
+#include "check.hpp"
+#include "core/LocalSolver.hpp"
+#include "core/ProblemFile.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <dirent.h>
+#include <fstream>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+using namespace yade;
+using cdtest::check;
+
+namespace {
+
+std::string num(double x)
+{
+	char b[32];
+	std::snprintf(b, sizeof b, "%.3g", x);
+	return b;
+}
+
+using Pair = std::pair<int, int>;
+
+struct Expectations {
+	std::map<Pair, Vector3r>                   engineImpulse;
+	std::map<int, std::pair<Vector3r, Vector3r>> engineVelocity;
+	int                                        engineSweeps = -1;
+	std::vector<std::pair<Pair, std::pair<Vector3r, Real>>> impulse; // exact impulse on body 2, tolerance
+	std::vector<std::pair<std::vector<int>, std::pair<Vector3r, Real>>> load; // exact total impulse on a set of bodies, tolerance
+	std::string                                description;
+	double                                     gridTolerance = 1e-10; // the option grid's solver tolerance
+};
+
+Vector3r readVec(std::istringstream& s)
+{
+	Real x, y, z;
+	s >> x >> y >> z;
+	return Vector3r(x, y, z);
+}
+
+Expectations parseExtra(const std::vector<std::string>& lines)
+{
+	Expectations e;
+	for (const std::string& line : lines) {
+		std::istringstream s(line);
+		std::string        key;
+		s >> key;
+		if (key == "engine_impulse") {
+			int b1, b2;
+			s >> b1 >> b2;
+			e.engineImpulse[{ b1, b2 }] = readVec(s);
+		} else if (key == "engine_velocity") {
+			int id;
+			s >> id;
+			const Vector3r v = readVec(s);
+			e.engineVelocity[id] = { v, readVec(s) };
+		} else if (key == "engine_sweeps") {
+			s >> e.engineSweeps;
+		} else if (key == "expect_impulse") {
+			int b1, b2;
+			s >> b1 >> b2;
+			const Vector3r P = readVec(s);
+			Real           tol;
+			s >> tol;
+			e.impulse.push_back({ { b1, b2 }, { P, tol } });
+		} else if (key == "expect_load") { // ids comma-separated: the total over those bodies
+			std::string      list, id;
+			std::vector<int> ids;
+			s >> list;
+			std::istringstream l(list);
+			while (std::getline(l, id, ','))
+				ids.push_back(std::stoi(id));
+			const Vector3r P = readVec(s);
+			Real           tol;
+			s >> tol;
+			e.load.push_back({ ids, { P, tol } });
+		} else if (key == "grid_tolerance") {
+			s >> e.gridTolerance;
+		} else if (key == "describe") {
+			std::getline(s, e.description);
+		}
+	}
+	return e;
+}
+
+// The law in matrix form after a solve: Ũ = W r + q, W from the solver's Delassus triplets,
+// q_k = A(U_free + s) saved by the caller (indexed by the contact's origin). Returns the
+// relative natural-map residual sqrt(Σ|e_k|²)/‖q‖ (ρ_k = 1/W̃_kk,NN).
+Real matrixLawResidual(const cd::Solver& s, const std::vector<Vector3r>& qByOrigin)
+{
+	std::vector<long>   rows, cols;
+	std::vector<double> vals;
+	s.delassusTriplets(rows, cols, vals);
+	const size_t          nc = s.contacts.size();
+	std::vector<Vector3r> U(nc);
+	std::vector<Real>     wnn(nc, 0);
+	for (size_t k = 0; k < nc; ++k)
+		U[k] = qByOrigin[s.contacts.info[k].origin];
+	for (size_t t = 0; t < vals.size(); ++t) {
+		U[rows[t] / 3][rows[t] % 3] += vals[t] * s.contacts.r[cols[t] / 3][cols[t] % 3];
+		if (rows[t] == cols[t] && rows[t] % 3 == 0) wnn[rows[t] / 3] += vals[t];
+	}
+	Real sum = 0, qq = 0;
+	for (size_t k = 0; k < nc; ++k) {
+		sum += cd::naturalMapResidual(s.contacts.r[k], U[k], s.contacts.mu[k], 1 / wnn[k]).squaredNorm();
+		const Vector3r& q = qByOrigin[s.contacts.info[k].origin];
+		if (q[0] < 0) qq += q.squaredNorm();
+	}
+	return std::sqrt(sum) / (qq > 0 ? std::sqrt(qq) : 1.0);
+}
+
+std::map<Pair, Vector3r> globalImpulses(const cd::Solver& s)
+{
+	std::map<Pair, Vector3r> out;
+	for (size_t k = 0; k < s.contacts.size(); ++k) {
+		const cd::ContactInfo& c = s.contacts.info[k];
+		out[{ c.b1, c.b2 }]      = c.frame.transpose() * s.contacts.r[k]; // as storeResults writes CDPhys.impulse
+	}
+	return out;
+}
+
+void reproduceEngine(const std::string& name, const cd::SavedProblem& pb, const Expectations& e)
+{
+	cd::Solver s;
+	pb.load(s);
+	s.assemble(pb.params);
+	const cd::SolveStats st = s.solve(pb.params);
+	s.correct(pb.params);
+	check(e.engineSweeps >= 0 && !e.engineImpulse.empty(), name + ": the file holds the engine's results");
+	check(st.iterations == e.engineSweeps, name + ": the engine's sweep count (" + std::to_string(e.engineSweeps) + "), got " + std::to_string(st.iterations));
+	const auto P     = globalImpulses(s);
+	bool       same  = P.size() == e.engineImpulse.size();
+	for (const auto& [pair, value] : e.engineImpulse)
+		same = same && P.count(pair) && P.at(pair) == value;
+	check(same, name + ": the engine's impulses, bit for bit");
+	bool sameV = !e.engineVelocity.empty();
+	for (const auto& [id, vw] : e.engineVelocity)
+		sameV = sameV && s.bodies[id].v == vw.first && s.bodies[id].w == vw.second;
+	check(sameV, name + ": the engine's velocities u_f, bit for bit");
+}
+
+void optionGrid(const std::string& name, const cd::SavedProblem& pb, const Expectations& e)
+{
+	std::vector<Vector3r> vRef;
+	Real                  vScale = 0;
+	for (int schedule : { 1, 4, 5 })
+		for (int momentum : { 1, 0 })
+			for (int sphere : { 1, 0 }) {
+				cd::Params p   = pb.params;
+				p.schedule     = schedule;
+				p.momentum     = momentum;
+				p.sphereKernel = sphere;
+				p.relaxation   = 1;
+				p.tolerance    = e.gridTolerance;
+				p.maxIter      = 100000;
+				const std::string what = name + " [schedule " + std::to_string(schedule) + (momentum ? ", momentum" : "") + (sphere ? ", sphere kernel" : ", general kernel") + "]";
+				cd::Solver s;
+				pb.load(s);
+				s.assemble(p);
+				std::vector<Vector3r> q(s.contacts.size());
+				for (size_t k = 0; k < s.contacts.size(); ++k) {
+					const cd::ContactInfo& c     = s.contacts.info[k];
+					q[c.origin]                  = c.A.cwiseProduct(s.localVelocity(long(k)) + c.s);
+				}
+				const cd::SolveStats st = s.solve(p);
+				check(st.converged, what + ": converges to " + num(p.tolerance) + " (residual " + num(st.residual) + ")");
+				const Real law = matrixLawResidual(s, q);
+				check(law <= 2 * p.tolerance, what + ": the law in matrix form holds (relative natural-map residual " + num(law) + ")");
+				const auto P = globalImpulses(s);
+				for (const auto& [pair, exp] : e.impulse) {
+					const Real err = P.count(pair) ? (P.at(pair) - exp.first).norm() : INFINITY;
+					check(err <= exp.second, what + ": exact impulse of (" + std::to_string(pair.first) + ", " + std::to_string(pair.second) + "), error " + std::to_string(err));
+				}
+				for (const auto& [ids, exp] : e.load) {
+					Vector3r    total = Vector3r::Zero();
+					std::string who;
+					for (int id : ids) {
+						who += (who.empty() ? "#" : ", #") + std::to_string(id);
+						for (const auto& [pair, Pk] : P)
+							total += (pair.second == id ? Pk : Vector3r::Zero()) - (pair.first == id ? Pk : Vector3r::Zero());
+					}
+					const Real err = (total - exp.first).norm();
+					check(err <= exp.second, what + ": exact total impulse on " + who + ", error " + num(err));
+				}
+				std::vector<Vector3r> v;
+				for (size_t b = 0; b < s.bodies.size(); ++b)
+					if (s.records[b].dynamic) v.push_back(s.bodies[b].v), v.push_back(s.bodies[b].w * (pb.contacts.size() ? pb.contacts.info.front().refR : 1.0));
+				if (vRef.empty()) {
+					vRef = v;
+					for (const Vector3r& x : v)
+						vScale = std::max(vScale, x.norm());
+					vScale = std::max(vScale, pb.params.h * 9.81);
+					continue;
+				}
+				Real dv = 0;
+				for (size_t i = 0; i < v.size(); ++i)
+					dv = std::max(dv, (v[i] - vRef[i]).norm());
+				check(dv <= 1e4 * p.tolerance * vScale, what + ": the same motion as the first option (relative difference " + num(dv / vScale) + ")");
+			}
+}
+
+void roundTrip(const std::string& name, const std::string& path, const cd::SavedProblem& pb)
+{
+	std::ifstream f(path);
+	std::string   original((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+	cd::Solver    s;
+	pb.load(s);
+	std::ostringstream o;
+	cd::writeProblem(o, s, pb.params);
+	check(original.compare(0, o.str().size(), o.str()) == 0, name + ": written back, the same text");
+}
+
+void badInput()
+{
+	const char* cases[] = { "", "cdproblem 2\n", "cdproblem 1\nparams 1e-4 0 0 1\n",
+		                    "cdproblem 1\nparams 1e-4 0 0 1 1e-6 100 1 1 1 2 1 1 1e-6 200\nbodies 1\nbody 0 1 1 1 0 0 0 0 0 0 1 1 1 1 0 0 0 1 0 0 0 1 0 0 0 0 0 0\ncontacts 1\ncontact 0 3 0.4 0\n" };
+	const char* expect[] = { "ends before the header", "unknown format version", "line 2", "line 6" };
+	for (int i = 0; i < 4; ++i) {
+		std::istringstream in(cases[i]);
+		std::string        msg;
+		try {
+			cd::readProblem(in);
+		} catch (const std::runtime_error& e) {
+			msg = e.what();
+		}
+		check(msg.find(expect[i]) != std::string::npos, std::string("bad problem file ") + std::to_string(i) + " refused naming \"" + expect[i] + "\" (got \"" + msg + "\")");
+	}
+}
+
+} // namespace
+
+void cdtest::solverTests(const std::string& dataDir)
+{
+	badInput();
+	std::vector<std::string> files;
+	if (DIR* d = opendir(dataDir.c_str())) {
+		while (dirent* ent = readdir(d)) {
+			const std::string n = ent->d_name;
+			if (n.size() > 4 && n.compare(n.size() - 4, 4, ".cdp") == 0) files.push_back(n);
+		}
+		closedir(d);
+	}
+	std::sort(files.begin(), files.end());
+	check(files.size() >= 5, "problem files found in " + dataDir + " (" + std::to_string(files.size()) + ")");
+	for (const std::string& n : files) {
+		const std::string  path = dataDir + "/" + n;
+		cd::SavedProblem   pb   = cd::readProblemFile(path);
+		const Expectations e    = parseExtra(pb.extra);
+		reproduceEngine(n, pb, e);
+		optionGrid(n, pb, e);
+		roundTrip(n, path, pb);
+	}
+}
