@@ -102,9 +102,9 @@ boost::python::dict ContactDynamicsIntegrator::pyProblem() const
 		const Vector3r         Ulaw = c.A.cwiseProduct(core.localVelocity(long(a)) + c.s); // the law's velocity at the solution
 		for (int i = 0; i < 3; ++i) {
 			q[3 * a + i] = double(Ulaw[i]);
-			r.push_back(double(core.contacts.r[a][i]));
+			r.push_back(double(core.contacts.state[a].r[i]));
 		}
-		mu.push_back(double(core.contacts.mu[a]));
+		mu.push_back(double(core.contacts.state[a].mu));
 		pairs.push_back(c.b1);
 		pairs.push_back(c.b2);
 	}
@@ -466,10 +466,10 @@ void ContactDynamicsIntegrator::storeResults()
 	const cd::ContactSet& set = core.contacts;
 	for (size_t k = 0; k < set.size(); ++k) {
 		const cd::ContactInfo& c    = set.info[k];
-		const Vector3r&        r    = set.r[k];
+		const Vector3r&        r    = set.state[k].r;
 		auto*                  phys = static_cast<CDPhys*>(links[c.origin]->phys.get());
 		phys->impulse               = c.frame.transpose() * r;
-		phys->status                = set.status[k];
+		phys->status                = set.state[k].status;
 		phys->overlapAllowance      = c.allowance;
 		phys->normalForce           = c.frame.row(0).transpose() * (r[0] / h);
 		phys->shearForce            = (c.frame.row(1).transpose() * r[1] + c.frame.row(2).transpose() * r[2]) / h;
@@ -480,7 +480,7 @@ void ContactDynamicsIntegrator::storeResults()
 	if (scene->trackEnergy) trackEnergy(); // O.forces still holds only the external forces here
 	for (size_t k = 0; k < set.size(); ++k) {
 		const cd::ContactInfo& c = set.info[k];
-		const Vector3r         P = c.frame.transpose() * set.r[k];
+		const Vector3r         P = c.frame.transpose() * set.state[k].r;
 		scene->forces.addForce(c.b2, P / h);
 		scene->forces.addTorque(c.b2, c.c2.cross(P) / h);
 		scene->forces.addForce(c.b1, -P / h);
@@ -512,8 +512,8 @@ void ContactDynamicsIntegrator::trackEnergy()
 	const cd::ContactSet& set = core.contacts;
 	for (size_t k = 0; k < set.size(); ++k) {
 		const cd::ContactInfo& c = set.info[k];
-		contactDissip -= set.r[k].dot(0.5 * (c.Ui + core.localVelocity(long(k))));
-		const Vector3r P = c.frame.transpose() * set.r[k];
+		contactDissip -= set.state[k].r.dot(0.5 * (c.Ui + core.localVelocity(long(k))));
+		const Vector3r P = c.frame.transpose() * set.state[k].r;
 		for (int side = 0; side < 2; ++side) {
 			const int             id = side ? c.b2 : c.b1;
 			const cd::BodyRecord& br = core.records[id];

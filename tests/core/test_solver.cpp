@@ -113,12 +113,12 @@ Real matrixLawResidual(const cd::Solver& s, const std::vector<Vector3r>& qByOrig
 	for (size_t k = 0; k < nc; ++k)
 		U[k] = qByOrigin[s.contacts.info[k].origin];
 	for (size_t t = 0; t < vals.size(); ++t) {
-		U[rows[t] / 3][rows[t] % 3] += vals[t] * s.contacts.r[cols[t] / 3][cols[t] % 3];
+		U[rows[t] / 3][rows[t] % 3] += vals[t] * s.contacts.state[cols[t] / 3].r[cols[t] % 3];
 		if (rows[t] == cols[t] && rows[t] % 3 == 0) wnn[rows[t] / 3] += vals[t];
 	}
 	Real sum = 0, qq = 0;
 	for (size_t k = 0; k < nc; ++k) {
-		sum += cd::naturalMapResidual(s.contacts.r[k], U[k], s.contacts.mu[k], 1 / wnn[k]).squaredNorm();
+		sum += cd::naturalMapResidual(s.contacts.state[k].r, U[k], s.contacts.state[k].mu, 1 / wnn[k]).squaredNorm();
 		const Vector3r& q = qByOrigin[s.contacts.info[k].origin];
 		if (q[0] < 0) qq += q.squaredNorm();
 	}
@@ -130,7 +130,7 @@ std::map<Pair, Vector3r> globalImpulses(const cd::Solver& s)
 	std::map<Pair, Vector3r> out;
 	for (size_t k = 0; k < s.contacts.size(); ++k) {
 		const cd::ContactInfo& c = s.contacts.info[k];
-		out[{ c.b1, c.b2 }]      = c.frame.transpose() * s.contacts.r[k]; // as storeResults writes CDPhys.impulse
+		out[{ c.b1, c.b2 }]      = c.frame.transpose() * s.contacts.state[k].r; // as storeResults writes CDPhys.impulse
 	}
 	return out;
 }

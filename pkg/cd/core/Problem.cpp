@@ -10,10 +10,7 @@ namespace cd {
 	void ContactSet::clear()
 	{
 		info.clear();
-		r.clear();
-		mu.clear();
-		status.clear();
-		kernel.clear();
+		state.clear();
 		sphere.clear();
 		general.clear();
 	}
@@ -21,10 +18,7 @@ namespace cd {
 	void ContactSet::add(const ContactInfo& c, Real mu_, int status_)
 	{
 		info.push_back(c);
-		r.push_back(Vector3r::Zero());
-		mu.push_back(mu_);
-		status.push_back(status_);
-		kernel.push_back(-1);
+		state.push_back(ContactState { Vector3r::Zero(), mu_, status_, -1 });
 		sphere.emplace_back();
 	}
 
@@ -42,10 +36,7 @@ namespace cd {
 	void ContactSet::permute(const std::vector<long>& order)
 	{
 		permuteArray(info, order);
-		permuteArray(r, order);
-		permuteArray(mu, order);
-		permuteArray(status, order);
-		permuteArray(kernel, order);
+		permuteArray(state, order);
 		permuteArray(sphere, order);
 	}
 

@@ -59,12 +59,22 @@ namespace cd {
 		Vector3r Ui;                // U_i, local frame
 	};
 
+	/*! What every pass over the contacts reads and writes (the sweep, the momentum pass, the
+	 *  residual): 40 bytes, so that such a pass streams a small array besides the kernel's rows. */
+	struct ContactState {
+		Vector3r r;          // impulse, local frame [N·s]
+		Real     mu;         // friction coefficient
+		int      status;     // ContactStatus after the last update
+		int      kernel;     // −1: sphere kernel; else the row in ContactSet::general
+	};
+
 	/*! The sphere kernel's constants of a contact whose lever arms lie along the normal (c_b = l_b n,
 	 *  as for every sphere) between bodies that are isotropic (scalar 1/m, 1/I, nothing blocked)
 	 *  or obstacles that do not rotate. Its Delassus block is diagonal,
 	 *  diag(m1+m2, m1+m2+l1k1+l2k2, same), and an update reads only these numbers, the impulse and
-	 *  the two bodies' velocities. */
+	 *  the two bodies' velocities. The body ids come first: the update's first loads depend on them. */
 	struct SphereRow {
+		int      b1, b2;    // body ids
 		Vector3r n, t1, t2; // local frame
 		Vector3r Wd;        // diagonal of the law's block A·W
 		Vector3r A;         // law scaling
@@ -73,7 +83,6 @@ namespace cd {
 		Real     m1, m2;    // inverse masses (0: obstacle)
 		Real     k1, k2;    // inverse inertias times lever arms
 		Real     wnn;       // W_NN
-		int      b1, b2;
 	};
 
 	/*! What the general kernel (any lever arms, anisotropic or blocked bodies, rotating obstacles)
@@ -84,16 +93,14 @@ namespace cd {
 	};
 
 	/*! The contacts of a step, one set in structure-of-arrays form: the arrays a sweep reads
-	 *  (impulse, friction, status, kernel) apart from the cold ContactInfo. A contact takes the
-	 *  sphere kernel (kernel[k] < 0: its SphereRow) or the general one (kernel[k] ≥ 0: its row in
-	 *  the side table `general`). There is one copy of every impulse and status. */
+	 *  (the state: impulse, friction, status, kernel; the sphere kernel's rows) apart from the cold
+	 *  ContactInfo. A contact takes the sphere kernel (kernel < 0: its SphereRow) or the general
+	 *  one (kernel ≥ 0: its row in the side table `general`). There is one copy of every impulse
+	 *  and status. */
 	struct ContactSet {
-		std::vector<ContactInfo> info;   // cold: host inputs, W, A, s, U_i
-		std::vector<Vector3r>    r;      // impulse, local frame [N·s]
-		std::vector<Real>        mu;     // friction coefficient
-		std::vector<int>         status; // ContactStatus after the last update
-		std::vector<int>         kernel; // −1: sphere kernel; else the row in `general`
-		std::vector<SphereRow>   sphere; // sphere kernel constants (valid where kernel < 0)
+		std::vector<ContactInfo>  info;   // cold: host inputs, W, A, s, U_i
+		std::vector<ContactState> state;  // hot: impulse, friction, status, kernel
+		std::vector<SphereRow>    sphere; // sphere kernel constants (valid where kernel < 0)
 		std::vector<GeneralRow>  general; // side table (not permuted: kernel[] points into it)
 
 		size_t size() const { return info.size(); }

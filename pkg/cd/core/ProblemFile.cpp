@@ -93,7 +93,7 @@ namespace cd {
 		o << "contacts " << set.size() << '\n';
 		for (size_t k = 0; k < set.size(); ++k) {
 			const ContactInfo& c = set.info[k];
-			o << "contact " << c.b1 << ' ' << c.b2 << ' ' << set.mu[k] << ' ' << set.status[k];
+			o << "contact " << c.b1 << ' ' << c.b2 << ' ' << set.state[k].mu << ' ' << set.state[k].status;
 			put(o, c.frame);
 			put(o, c.c1);
 			put(o, c.c2);

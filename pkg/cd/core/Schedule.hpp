@@ -51,7 +51,12 @@ namespace cd {
 		template <class F> void run(F&& f) const
 		{
 			for (const Stage& st : stages) {
-#pragma omp parallel for schedule(static) if (st.parallel)
+				if (!st.parallel) { // a serial stage runs on the calling thread, outside any parallel region
+					for (int i = st.begin; i < st.end; ++i)
+						f(i, bounds[i], bounds[i + 1]);
+					continue;
+				}
+#pragma omp parallel for schedule(static)
 				for (int i = st.begin; i < st.end; ++i)
 					f(i, bounds[i], bounds[i + 1]);
 			}
@@ -59,7 +64,12 @@ namespace cd {
 		template <class F> void runBackwards(F&& f) const
 		{
 			for (auto st = stages.rbegin(); st != stages.rend(); ++st) {
-#pragma omp parallel for schedule(static) if (st->parallel)
+				if (!st->parallel) {
+					for (int i = st->begin; i < st->end; ++i)
+						f(i, bounds[i], bounds[i + 1]);
+					continue;
+				}
+#pragma omp parallel for schedule(static)
 				for (int i = st->begin; i < st->end; ++i)
 					f(i, bounds[i], bounds[i + 1]);
 			}

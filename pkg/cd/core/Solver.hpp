@@ -70,6 +70,7 @@ namespace cd {
 		void     applySphereImpulse(const SphereRow& c, const Vector3r& dr);
 		void     applyImpulse(const ContactInfo& c, const Vector3r& dr);
 		template <bool Relaxed> Real updateContact(long k, Real omega, bool& changed);
+		template <bool Relaxed> Real updateGeneral(long k, Real omega, bool& changed);
 		template <bool Relaxed> Real sweepRange(long begin, long end, Real omega, int& nChanged);
 		template <bool Relaxed> Real sweep(Real omega, int& nChanged);
 		void     startMomentum();
