@@ -138,8 +138,23 @@ def _command(repo, run_dir, rec, plan, resume):
            '--out', run_dir]
     if resume:
         return cmd + ['--resume']
+    rate, dt = option_value(plan['options'], '--rate', RATE_DEFAULT), option_value(plan['options'], '--dt', DT_DEFAULT)
     return cmd + ['--n-grains', str(rec['n_grains']), '--seed', str(rec['seed']), '--relax', str(plan['relax']),
-                  '--epochs', epochs(rec['n_grains'], plan['relax'])] + list(plan['options'])
+                  '--epochs', epochs(rec['n_grains'], plan['relax'], rate, dt)] + list(plan['options'])
+
+
+def option_value(options, flag, default):
+    """The float value of ``flag`` in a pile.py option list (``['--dt', '1e-3']`` or ``['--dt=1e-3']``),
+    ``default`` when absent. Raises ValueError naming the flag when its value is missing or not a number."""
+    options = list(options)
+    for i, o in enumerate(options):
+        if o == flag or o.startswith(flag + '='):
+            text = o.split('=', 1)[1] if '=' in o else (options[i + 1] if i + 1 < len(options) else None)
+            try:
+                return float(text)
+            except (TypeError, ValueError):
+                raise ValueError('pile option %s needs a number, got %r' % (flag, text))
+    return default
 
 
 def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_failed=False, poll=2.0):

@@ -1,0 +1,95 @@
+"""CD against YADE's soft-contact MD on a pile at the paper's size, from the same state over the
+same simulated time, fed by the same protocol (issue 16, done-criterion 1).
+
+    scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py [--snapshot RUN/snap.npz] [--time 0.02]
+        [--young 1e9,auto] [--out docs/data/cd_md_fullsize.csv]
+
+Every case restarts from the snapshot (``yadecd.pile.scene_from_snapshot``), keeps feeding grains
+by the protocol's rule (200 per second, the same grains in every case) and runs ``--time``
+simulated seconds: CD at the paper's h = 2e-4 s and tolerance 1e-3, MD (linear spring and
+Coulomb slider, ``yadecd.md``, global damping 0.2, O.dt = 0.5 · PWaveTimeStep) at each Young's
+modulus of ``--young``. ``auto`` is the modulus at which MD's mean grain–grain overlap equals CD's:
+a linear contact's overlap under a given load is inversely proportional to E, so it is read off
+the first MD case (E_auto = E_1 · overlap_1 / overlap_CD) and then *run*, not extrapolated.
+Recorded per case: wall time, steps, wall time per simulated second, grains, contacts, the
+grain–grain overlaps at the end over the mean diameter (mean and largest); the ratio of MD's to
+CD's wall time per simulated second. Run it on an otherwise idle machine.
+"""
+import argparse
+import csv
+import datetime
+import os
+import sys
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
+sys.path.insert(0, os.path.join(REPO, 'py'))
+import numpy as np  # noqa: E402
+from yade import O  # noqa: E402
+from yadecd import pile  # noqa: E402
+from yadecd.compare_pile import overlaps  # noqa: E402
+
+ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+ap.add_argument('--snapshot', default='/work/runs/cone14000_28/snap_0000.100.npz')
+ap.add_argument('--time', type=float, default=0.02, help='simulated seconds per case')
+ap.add_argument('--young', default='1e9,auto', help="MD Young's moduli [Pa], comma-separated; 'auto' matches CD's mean overlap")
+ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'cd_md_fullsize.csv'))
+args = ap.parse_args()
+if not os.path.exists(args.snapshot):
+    ap.error('--snapshot %s: no such file (build one with scripts/bench/cone_pile.py)' % args.snapshot)
+if args.time <= 0:
+    ap.error('--time must be positive')
+moduli = [m.strip() for m in args.young.split(',') if m.strip()]
+if moduli and moduli[0] == 'auto':
+    ap.error("--young: 'auto' needs a numeric modulus before it")
+
+
+def run_case(method, young=None):
+    """Restart from the snapshot, feed and run --time simulated seconds; returns the CSV row."""
+    over = dict(method=method) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
+    p = pile.scene_from_snapshot(args.snapshot, **over)
+    period = max(1, int(round(1 / (p['rate'] * p['dt']))))
+    feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
+    steps = int(round(args.time / O.dt))
+    t0, last = time.time(), time.time()
+    for k in range(steps):
+        if k % period == 0:
+            feeder.create()
+        O.step()
+        if time.time() - last > 60:
+            last = time.time()
+            print('  %s %s: step %d/%d, %.0f s' % (method, young or '', k + 1, steps, last - t0), flush=True)
+    wall = time.time() - t0
+    omax, omean = overlaps()
+    grains = sum(1 for b in O.bodies if b and b.dynamic and b.shape.__class__.__name__ == 'Sphere')
+    row = dict(date=datetime.date.today().isoformat(), snapshot=os.path.relpath(args.snapshot, REPO) if args.snapshot.startswith(REPO) else args.snapshot,
+               method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt, steps=steps,
+               sim_time_s=args.time, wall_s='%.2f' % wall, wall_per_sim_s='%.1f' % (wall / args.time), grains=grains,
+               contacts=O.interactions.countReal(), overlap_mean_over_d='%.3e' % omean, overlap_max_over_d='%.3e' % omax)
+    print('  '.join('%s=%s' % kv for kv in row.items()), flush=True)
+    return row, wall, omean
+
+
+rows = []
+row, cd_wall, cd_overlap = run_case('CD')
+rows.append(row)
+first = None
+for m in moduli:
+    if m == 'auto':
+        e1, o1 = first
+        young = e1 * o1 / cd_overlap
+        print('auto: E = %.3g Pa (from E = %.3g Pa, overlap %.3e d, CD %.3e d)' % (young, e1, o1, cd_overlap), flush=True)
+    else:
+        young = float(m)
+    row, wall, ov = run_case('MD', young)
+    if first is None:
+        first = (young, ov)
+    rows.append(row)
+for r in rows:
+    r['md_over_cd_wall'] = '%.2f' % (float(r['wall_s']) / cd_wall)
+os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+with open(args.out, 'w', newline='') as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+print('wrote', args.out)
