@@ -169,6 +169,7 @@ cd::Params ContactDynamicsIntegrator::params() const
 	p.recordResidual    = recordResidual;
 	p.positionTolerance = positionTolerance;
 	p.maxProjectionIter = maxProjectionIter;
+	p.correctionMomentum = correctionMomentum;
 	return p;
 }
 

@@ -26,6 +26,9 @@ CASES = {}
 
 
 def _case(name, build, steps, **options):
+    """A case; its position correction is the plain one (the hashes recorded before the solver-core
+    refactor) unless ``correctionMomentum=True`` is given."""
+    options.setdefault('correctionMomentum', False)
     CASES[name] = (build, options, steps)
 
 
@@ -52,6 +55,12 @@ _case('mass_ratio100', lambda **o: scenes.mass_ratio_stack(100.0, **o), 50, tole
 _case('binary_restitution', lambda **o: scenes.binary_collision((1.0, 0.2, 0), (-0.5, 0, 0.1), en=0.6, et=0.2,
                                                                 gap=1e-4, offset=0.004), 40)
 _case('pile60', None, 1500)
+# the accelerated position correction (the engine's default since issue 16): landings in the loose
+# packing with height, colour and slab schedules, and the fed pile
+for _order in (1, 4, 5):
+    _case('loose300_order%d_corrmom' % _order, lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
+          sweepOrder=_order, correctionMomentum=True)
+_case('pile60_corrmom', None, 1500, correctionMomentum=True)
 
 
 def state_digest():
@@ -72,7 +81,8 @@ def run_case(name):
     if build is None:      # the fed pile: the protocol itself, 60 grains, 0.3 s
         from . import pile
         with tempfile.TemporaryDirectory() as tmp:
-            pile.run(os.path.join(tmp, 'run'), n_grains=60, relax=0.0, seed=7, snap_every=1e9, log=lambda s: None)
+            pile.run(os.path.join(tmp, 'run'), n_grains=60, relax=0.0, seed=7, snap_every=1e9, log=lambda s: None,
+                     correction_momentum=options['correctionMomentum'])
     else:
         build()
         cd = integrator()

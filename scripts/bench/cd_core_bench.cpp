@@ -92,7 +92,7 @@ int main(int argc, char** argv)
 	if (argc < 2) usage("no problem file given");
 	std::string file = argv[1], csv;
 	int         k1 = 20, k2 = 120, repeat = 3;
-	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1;
+	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
 	double      tolerance = -1;
 	for (int i = 2; i < argc; ++i) {
 		const std::string a = argv[i];
@@ -103,6 +103,7 @@ int main(int argc, char** argv)
 		else if (a == "--momentum") momentum = std::stoi(v);
 		else if (a == "--sphere") sphere = std::stoi(v);
 		else if (a == "--tolerance") tolerance = std::stod(v);
+		else if (a == "--correction-momentum") corrMomentum = std::stoi(v);
 		else if (a == "--time-sweeps") timeSweeps = std::stoi(v);
 		else if (a == "--k1") k1 = std::stoi(v);
 		else if (a == "--k2") k2 = std::stoi(v);
@@ -119,6 +120,7 @@ int main(int argc, char** argv)
 		if (momentum >= 0) p.momentum = momentum;
 		if (sphere >= 0) p.sphereKernel = sphere;
 		if (tolerance > 0) p.tolerance = tolerance;
+		if (corrMomentum >= 0) p.correctionMomentum = corrMomentum;
 		int threads = 1;
 #ifdef _OPENMP
 		threads = omp_get_max_threads();

@@ -215,6 +215,62 @@ void optionGrid(const std::string& name, const cd::SavedProblem& pb, const Expec
 			}
 }
 
+// The end-of-step overlap beyond the allowance of every contact after the position correction,
+// relative to its reference radius: (−a − g_m − h/2 (U_N + Ũ_N))/refR with Ũ from the bodies'
+// pseudo-velocities (records[b].pv, .pw), computed here from the definitions, not by the solver.
+std::vector<Real> finalOverlaps(const cd::Solver& s, Real h)
+{
+	std::vector<Real> out(s.contacts.size());
+	for (size_t k = 0; k < s.contacts.size(); ++k) {
+		const cd::ContactInfo& c  = s.contacts.info[k];
+		const cd::BodyRecord & r1 = s.records[c.b1], &r2 = s.records[c.b2];
+		const Real pseudoN = (c.frame * ((r2.pv + r2.pw.cross(c.c2)) - (r1.pv + r1.pw.cross(c.c1))))[0];
+		out[k]             = (-c.allowance - c.gapM - 0.5 * h * (s.localVelocity(long(k))[0] + pseudoN)) / c.refR;
+	}
+	return out;
+}
+
+// The position correction, plain and with momentum, on a step that needs one: every overlap
+// beyond its allowance removed to positionTolerance, and the same pseudo-velocities from both
+// (the frictionless projection's velocity, M⁻¹HP, is unique even where P is not).
+void correctionCheck(const std::string& name, const cd::SavedProblem& pb)
+{
+	std::vector<std::vector<Vector3r>> pv;
+	std::vector<int>                   sweeps;
+	Real                               before = 0;
+	for (bool momentum : { false, true }) {
+		cd::Params p         = pb.params;
+		p.correctionMomentum = momentum;
+		p.maxProjectionIter  = 100000;
+		cd::Solver s;
+		pb.load(s);
+		s.assemble(p);
+		s.solve(p);
+		const cd::CorrectionStats st = s.correct(p);
+		before                       = st.maxOverlap;
+		if (st.iterations == 0) return; // nothing to correct in this step
+		const std::string what  = name + (momentum ? " [correction with momentum]" : " [plain correction]");
+		Real              worst = 0;
+		for (Real v : finalOverlaps(s, p.h))
+			worst = std::max(worst, v);
+		check(st.iterations < p.maxProjectionIter, what + ": converges (" + std::to_string(st.iterations) + " sweeps)");
+		check(worst <= p.positionTolerance * (1 + 1e-9), what + ": overlap " + num(before) + " removed to the tolerance " + num(p.positionTolerance) + " (left " + num(worst) + ")");
+		std::vector<Vector3r> v;
+		for (size_t b = 0; b < s.bodies.size(); ++b)
+			v.push_back(s.records[b].pv);
+		pv.push_back(v);
+		sweeps.push_back(st.iterations);
+	}
+	// both stop within positionTolerance of the constraints: pseudo-displacements h/2·Ũ agree to
+	// a small multiple of it (relative to the smallest reference radius)
+	Real refR = INFINITY, diff = 0;
+	for (size_t k = 0; k < pb.contacts.size(); ++k)
+		refR = std::min(refR, pb.contacts.info[k].refR);
+	for (size_t b = 0; b < pv[0].size(); ++b)
+		diff = std::max(diff, 0.5 * pb.params.h * (pv[0][b] - pv[1][b]).norm() / refR);
+	check(diff <= 10 * pb.params.positionTolerance, name + ": plain and accelerated corrections give the same pseudo-displacements (difference " + num(diff) + " of a radius; sweeps " + std::to_string(sweeps[0]) + " and " + std::to_string(sweeps[1]) + ")");
+}
+
 void roundTrip(const std::string& name, const std::string& path, const cd::SavedProblem& pb)
 {
 	std::ifstream f(path);
@@ -264,6 +320,7 @@ void cdtest::solverTests(const std::string& dataDir)
 		const Expectations e    = parseExtra(pb.extra);
 		reproduceEngine(n, pb, e);
 		optionGrid(n, pb, e);
+		correctionCheck(n, pb);
 		roundTrip(n, path, pb);
 	}
 }

@@ -59,6 +59,11 @@ namespace cd {
 				std::string w;
 				if (!(s >> w) || w != k) fail("expected \"" + k + "\"");
 			}
+			bool more()
+			{
+				s >> std::ws;
+				return !s.eof();
+			}
 			void end()
 			{
 				std::string rest;
@@ -75,7 +80,8 @@ namespace cd {
 		o << "params " << p.h;
 		put(o, p.up);
 		o << ' ' << p.tolerance << ' ' << p.maxIter << ' ' << p.checkEvery << ' ' << p.relaxation << ' ' << p.schedule << ' ' << p.slabs << ' '
-		  << int(p.momentum) << ' ' << int(p.sphereKernel) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter << '\n';
+		  << int(p.momentum) << ' ' << int(p.sphereKernel) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter
+		  << (p.correctionMomentum ? " 1" : "") << '\n'; // an optional trailing flag: absent means 0
 		o << "bodies " << solver.bodies.size() << '\n';
 		for (size_t id = 0; id < solver.bodies.size(); ++id) {
 			const Body&       b = solver.bodies[id];
@@ -136,6 +142,8 @@ namespace cd {
 			p.sphereKernel      = l.get<int>() != 0;
 			p.positionTolerance = l.get<Real>();
 			p.maxProjectionIter = l.get<int>();
+			// files written before the correction had momentum end here: they were solved without it
+			p.correctionMomentum = l.more() ? l.get<int>() != 0 : false;
 			l.end();
 		}
 		LineReader hb = next("the body count");

@@ -446,8 +446,10 @@ namespace cd {
 	}
 
 	// One correction sweep over rows [begin, end), forwards or backwards: returns the largest
-	// overlap beyond its allowance met (relative) before each row's update.
-	Real Solver::correctionRange(long begin, long end, bool forward)
+	// overlap beyond its allowance met (relative) before each row's update; with complementarity,
+	// also the largest separation of a row that still pushes (P > 0 with the gap open beyond the
+	// allowance: min(P/gain, −v)), which an extrapolated start can create.
+	Real Solver::correctionRange(long begin, long end, bool forward, bool complementarity)
 	{
 		Real worst = 0;
 		for (long j = begin; j < end; ++j) {
@@ -458,6 +460,7 @@ namespace cd {
 			const Real un   = row.sphere ? row.n.dot(pseudoV[row.b2] - pseudoV[row.b1]) : localPseudoVelocity(contacts.info[k])[0];
 			const Real v    = row.overlap - row.lag * un; // > 0: overlap beyond the allowance
 			worst           = math::max(worst, v);
+			if (complementarity && row.P > 0 && v < 0) worst = math::max(worst, math::min(row.P / row.gain, -v));
 			const Real Pnew = math::max(Real(0), row.P + row.gain * v);
 			const Real dP   = Pnew - row.P;
 			if (dP != 0) {
@@ -470,6 +473,39 @@ namespace cd {
 			row.P = Pnew;
 		}
 		return worst;
+	}
+
+	// Nesterov's extrapolation of the correction, P_y = P + β(P − P_prev) ≥ 0: the pseudo-velocities
+	// are linear in P, so one pass over bodies extrapolates them; a row whose P_y would be negative
+	// is set to 0 and its bodies get the difference.
+	void Solver::extrapolateCorrection(Real beta)
+	{
+		const long nb = long(bodies.size());
+#pragma omp parallel for schedule(static) if (nb >= 4096)
+		for (long b = 0; b < nb; ++b) {
+			const Vector3r v = pseudoV[b], w = records[b].pw;
+			pseudoV[b] += beta * (v - pvPrev[b]);
+			records[b].pw += beta * (w - pwPrev[b]);
+			pvPrev[b] = v;
+			pwPrev[b] = w;
+		}
+		order.run([&](int, long begin, long end) {
+			for (long k = begin; k < end; ++k) {
+				CorrectionRow& row = corrections[k];
+				const Real     P   = row.P;
+				if (P == pPrev[k]) continue;
+				const Real y = P + beta * (P - pPrev[k]);
+				pPrev[k]     = P;
+				row.P        = y;
+				if (y >= 0) continue;
+				row.P = 0;
+				if (row.sphere) {
+					if (row.m2 > 0) pseudoV[row.b2] -= row.m2 * y * row.n;
+					if (row.m1 > 0) pseudoV[row.b1] += row.m1 * y * row.n;
+				} else
+					applyPseudoImpulse(contacts.info[k], -y);
+			}
+		});
 	}
 
 	// The end-of-step gap is g_f = g_m + h/2 (U_f,N + Ũ_N), Ũ from normal pseudo-impulses P ≥ 0
@@ -505,10 +541,19 @@ namespace cd {
 			}
 		}
 		pseudoV.assign(bodies.size(), Vector3r::Zero());
+		const bool momentum = p.correctionMomentum;
+		if (momentum) {
+			pPrev.assign(nc, 0);
+			pvPrev.assign(bodies.size(), Vector3r::Zero());
+			pwPrev.assign(bodies.size(), Vector3r::Zero());
+		}
 		std::vector<Real>& rangeWorst = rangeChange;
+		Real               tNesterov = 1, lastWorst = std::numeric_limits<Real>::infinity();
 		for (int it = 1; it <= p.maxProjectionIter; ++it) {
-			const bool forward = it % 2 == 1; // alternating directions
-			auto       pass    = [&](int i, long begin, long end) { rangeWorst[i] = correctionRange(begin, end, forward); };
+			// plain: alternating directions; with momentum always forwards (alternating breaks the
+			// extrapolation: 186 against 48 sweeps on a fed 14 000-grain cone step)
+			const bool forward = momentum || it % 2 == 1;
+			auto       pass    = [&](int i, long begin, long end) { rangeWorst[i] = correctionRange(begin, end, forward, momentum); };
 			if (forward) order.run(pass);
 			else
 				order.runBackwards(pass);
@@ -517,6 +562,13 @@ namespace cd {
 				worst = math::max(worst, rangeWorst[i]);
 			stats.iterations = it;
 			if (worst <= p.positionTolerance) break;
+			if (momentum && it < p.maxProjectionIter) { // as in the solve: restart when a sweep ends clearly worse than the one before
+				if (worst > 1.2 * lastWorst) tNesterov = 1;
+				lastWorst       = worst;
+				const Real next = (1 + math::sqrt(1 + 4 * tNesterov * tNesterov)) / 2;
+				extrapolateCorrection((tNesterov - 1) / next);
+				tNesterov = next;
+			}
 		}
 		for (size_t b = 0; b < bodies.size(); ++b)
 			records[b].pv = pseudoV[b];

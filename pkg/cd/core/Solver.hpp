@@ -64,6 +64,8 @@ namespace cd {
 		};
 		std::vector<CorrectionRow> corrections;
 		std::vector<Vector3r>      pseudoV; // translational pseudo-velocities during the correction
+		std::vector<Real>          pPrev;   // correction momentum: pseudo-impulses after the previous sweep
+		std::vector<Vector3r>      pvPrev, pwPrev; // correction momentum: pseudo-velocities after the previous sweep
 
 		void     buildSphereRow(long k, bool allowed);
 		Vector3r sphereVelocity(const SphereRow& c) const;
@@ -79,7 +81,8 @@ namespace cd {
 		Real     residual(SolveStats& stats) const;
 		Vector3r localPseudoVelocity(const ContactInfo& c) const;
 		void     applyPseudoImpulse(const ContactInfo& c, Real dP);
-		Real     correctionRange(long begin, long end, bool forward);
+		Real     correctionRange(long begin, long end, bool forward, bool complementarity);
+		void     extrapolateCorrection(Real beta);
 	};
 
 } // namespace cd
