@@ -124,6 +124,22 @@ class TestResume(unittest.TestCase):
         self.assertIn('bit-identical continuation', lines[0])
         self.assertEqual(faults.compare_states(faults.final_state(run_dir), self.ref), '')
 
+    def test_wall_time_adds_up_over_segments(self):
+        """A run stopped twice and resumed: run.json's total wall time is the sum of its segments'
+        (each checkpoint carries the wall time so far), and progress.csv's wall column never falls back."""
+        run_dir = os.path.join(self.tmp, 'walls')
+        segments = [pile.run(run_dir, stop_time=0.05, **TINY, **QUIET)['wall_time_s']]
+        segments.append(pile.run(run_dir, resume=True, stop_time=0.1, **QUIET)['wall_time_s'])
+        p = pile.run(run_dir, resume=True, **QUIET)
+        segments.append(p['wall_time_s'])
+        # each segment's checkpoint-and-return costs a little outside the timed loop: 5 % slack
+        self.assertAlmostEqual(p['wall_time_total_s'], sum(segments), delta=0.05 * sum(segments) + 0.05)
+        self.assertGreater(p['wall_time_total_s'], p['wall_time_s'])
+        with open(os.path.join(run_dir, 'progress.csv')) as f:
+            walls = [float(ln.split(',')[5]) for ln in f.readlines()[1:]]
+        self.assertEqual(walls, sorted(walls))
+        self.assertGreater(walls[-1], segments[0])
+
     def test_damaged_newest_unit(self):
         """Truncated or altered files of the newest unit: reported, the unit before it is used,
         and the end is still bit-identical."""

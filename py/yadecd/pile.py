@@ -492,6 +492,8 @@ class PileRun:
         self.rng = np.random.default_rng(p['seed'])
         self.feeder = Feeder(p, self.rng, self.births, self.clock)
         self.resumed_from = None     # description of the checkpoint resumed from
+        self.wall_before = 0.0       # wall time [s] of the segments before this one (a resumed run)
+        self.segment_start = time.time()
 
     # ------------------------------------------------------------------ starting
     @classmethod
@@ -562,6 +564,19 @@ class PileRun:
         self.feeder.count = int(meta['created'])
         self.feeder.near = [int(i) for i in near]
         self.done_snaps.update(meta['snaps'])
+        self.wall_before = float(meta['wall_s']) if 'wall_s' in meta else self._progress_wall(meta['time'])
+
+    def _progress_wall(self, t):
+        """Wall time [s] of the last progress line at or before ``t`` (checkpoints written before they
+        recorded the run's wall time: their first segment's progress lines count from the start)."""
+        path, wall = os.path.join(self.run_dir, 'progress.csv'), 0.0
+        if os.path.exists(path):
+            with open(path) as f:
+                for ln in f.readlines()[1:]:
+                    parts = ln.strip().split(',')
+                    if len(parts) >= 6 and _float(parts[0]) <= t + 0.5 * self.p['dt']:
+                        wall = _float(parts[5])
+        return wall if math.isfinite(wall) else 0.0
 
     def _resume_unit(self, seq, unit, info):
         meta = info['meta']
@@ -641,7 +656,8 @@ class PileRun:
         meta = dict(time=t, iter=it, time_offset=self.clock.t0, iter_offset=self.clock.i0,
                     plugin_digest=runstate.plugin_digest(), yade_version=runstate.yade_version(),
                     rng=self.rng.bit_generator.state, created=self.feeder.count, snaps=sorted(self.done_snaps),
-                    n_unconverged=int(getattr(O.engines[-1], 'nUnconverged', 0)))
+                    n_unconverged=int(getattr(O.engines[-1], 'nUnconverged', 0)),
+                    wall_s=self.wall_before + (time.time() - self.segment_start))
         self.store.write({'state.npz': lambda path: runstate.capture(path, t, it, extra),
                           'scene.yade.gz': lambda path: O.save(path)}, meta)
 
@@ -663,6 +679,7 @@ class PileRun:
         t_stop = min(t_end, t_stop or p['stop_time'] or t_end)
         snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in self.done_snaps]
         wall0, sim0 = time.time(), clock.time()
+        self.segment_start = wall0
         last_ck = last_log = time.time()
         progress = open(os.path.join(self.run_dir, 'progress.csv'), 'a')
         if progress.tell() == 0:
@@ -691,7 +708,8 @@ class PileRun:
                 self.log('t=%7.3f s  grains %6d/%d  contacts %6d  sweeps %4d  residual %.1e  %.3f sim-s/s  ETA %s'
                          % (t, feeder.count, p['n_grains'], contacts, sweeps, residual, rate,
                             time.strftime('%H:%M:%S', time.gmtime(eta)) if eta < 1e7 else '?'))
-                progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (t, feeder.count, contacts, sweeps, residual, now - wall0))
+                progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (t, feeder.count, contacts, sweeps, residual,
+                                                              self.wall_before + now - wall0))  # the run's wall time
                 progress.flush()
                 last_log = now
             if now - last_ck > p['checkpoint_every']:
@@ -700,6 +718,7 @@ class PileRun:
         self.checkpoint()
         progress.close()
         p['wall_time_s'] = time.time() - wall0   # this segment's (a resumed run: since the resume)
+        p['wall_time_total_s'] = self.wall_before + p['wall_time_s']   # all segments
         p['finished'] = clock.time() >= t_end - 0.5 * p['dt']
         p['unconverged_steps'] = getattr(O.engines[-1], 'nUnconverged', 0)
         if stop.name:

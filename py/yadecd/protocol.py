@@ -168,6 +168,7 @@ def figure(results, ref_records, path, epoch, n_grains, keys=('slope_deg', 'pack
     """Each observable's mean and 95 % interval per setting against the wall time per pile,
     the paper's mean ± one seed spread as a band."""
     import matplotlib
+    import matplotlib.ticker
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
@@ -188,13 +189,18 @@ def figure(results, ref_records, path, epoch, n_grains, keys=('slope_deg', 'pack
             yerr = [[y - lo * f], [hi * f - y]] if math.isfinite(lo) else None
             ax.errorbar([x], [y], yerr=yerr, fmt='o', capsize=3, label=name + ('' if w['verdict'] != 'differs' else ' (differs)'))
         ax.set_xscale('log')
-        ax.set_xlabel('wall time per pile [min] (this machine, one thread)')
+        ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter('%g'))
+        ax.tick_params(axis='x', which='minor', labelsize=7)
+        ax.set_xlabel('wall time per pile [min]')
         ax.set_ylabel('%s%s' % (label, ' [%s]' % unit if unit else ''))
         ax.set_title(label, fontsize=9)
-    axes.flat[0].legend(fontsize=7)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc='lower center', ncol=4, fontsize=8)
     fig.suptitle('%d-grain piles, %s: settings against the paper\'s protocol (bars: the setting\'s mean + Welch 95 %% '
-                 'interval of its difference)' % (n_grains, epoch), fontsize=9)
-    fig.tight_layout()
+                 'interval of its difference; "differs": in the slope)\nwall time: one thread per pile, two piles at a time '
+                 'on two cores' % (n_grains, epoch), fontsize=9)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path

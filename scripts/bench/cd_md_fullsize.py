@@ -1,19 +1,24 @@
 """CD against YADE's soft-contact MD on a pile at the paper's size, from the same state over the
 same simulated time, fed by the same protocol (issue 16, done-criterion 1).
 
-    scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py [--snapshot RUN/snap.npz] [--time 0.02]
+    scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py --snapshot RUN/snap.npz [--time 0.01] [--warmup 0.002]
         [--young 1e9,auto] [--out docs/data/cd_md_fullsize.csv]
 
 Every case restarts from the snapshot (``yadecd.pile.scene_from_snapshot``), keeps feeding grains
-by the protocol's rule (200 per second, the same grains in every case) and runs ``--time``
-simulated seconds: CD at the paper's h = 2e-4 s and tolerance 1e-3, MD (linear spring and
+by the protocol's rule (200 per second, the same grains in every case), runs ``--warmup``
+simulated seconds untimed (a snapshot holds no impulses: CD's first steps are cold solves, and MD's
+springs must first take up the load) and then ``--time`` simulated seconds, timed: CD at the paper's h = 2e-4 s and tolerance 1e-3, MD (linear spring and
 Coulomb slider, ``yadecd.md``, global damping 0.2, O.dt = 0.5 · PWaveTimeStep) at each Young's
 modulus of ``--young``. ``auto`` is the modulus at which MD's mean grain–grain overlap equals CD's:
 a linear contact's overlap under a given load is inversely proportional to E, so it is read off
-the first MD case (E_auto = E_1 · overlap_1 / overlap_CD) and then *run*, not extrapolated.
+the MD case before it (E_auto = E_prev · overlap_prev / overlap_CD) and then *run*, not
+extrapolated; ``1e9,auto,auto`` refines it once more.
 Recorded per case: wall time, steps, wall time per simulated second, grains, contacts, the
-grain–grain overlaps at the end over the mean diameter (mean and largest); the ratio of MD's to
-CD's wall time per simulated second. Run it on an otherwise idle machine.
+grain–grain overlaps at the end over the mean diameter (mean and largest); for CD also beyond each
+contact's overlap allowance (``CDPhys.overlapAllowance``: overlaps a state was built with, which CD
+keeps; CD's own overlap is what it adds, and that is what MD is matched to); the ratio of MD's to
+CD's wall time per simulated second. Use a deposited pile's snapshot: a state built with overlaps
+(``cone_pile.py``'s cone, up to 2.6e-3 d) sends MD's stiff springs off. Run it on an idle machine.
 """
 import argparse
 import csv
@@ -30,15 +35,16 @@ from yadecd import pile  # noqa: E402
 from yadecd.compare_pile import overlaps  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-ap.add_argument('--snapshot', default='/work/runs/cone14000_28/snap_0000.100.npz')
-ap.add_argument('--time', type=float, default=0.02, help='simulated seconds per case')
+ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run.json beside it gives the protocol)')
+ap.add_argument('--time', type=float, default=0.01, help='simulated seconds timed per case')
+ap.add_argument('--warmup', type=float, default=0.002, help='simulated seconds run untimed first')
 ap.add_argument('--young', default='1e9,auto', help="MD Young's moduli [Pa], comma-separated; 'auto' matches CD's mean overlap")
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'cd_md_fullsize.csv'))
 args = ap.parse_args()
 if not os.path.exists(args.snapshot):
     ap.error('--snapshot %s: no such file (build one with scripts/bench/cone_pile.py)' % args.snapshot)
-if args.time <= 0:
-    ap.error('--time must be positive')
+if args.time <= 0 or args.warmup < 0:
+    ap.error('--time must be positive and --warmup not negative')
 moduli = [m.strip() for m in args.young.split(',') if m.strip()]
 if moduli and moduli[0] == 'auto':
     ap.error("--young: 'auto' needs a numeric modulus before it")
@@ -50,40 +56,53 @@ def run_case(method, young=None):
     p = pile.scene_from_snapshot(args.snapshot, **over)
     period = max(1, int(round(1 / (p['rate'] * p['dt']))))
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
-    steps = int(round(args.time / O.dt))
+    warm, steps = int(round(args.warmup / O.dt)), int(round(args.time / O.dt))
     t0, last = time.time(), time.time()
-    for k in range(steps):
+    for k in range(warm + steps):
+        if k == warm:
+            t0 = time.time()
         if k % period == 0:
             feeder.create()
         O.step()
         if time.time() - last > 60:
             last = time.time()
-            print('  %s %s: step %d/%d, %.0f s' % (method, young or '', k + 1, steps, last - t0), flush=True)
+            print('  %s %s: step %d/%d' % (method, young or '', k + 1, warm + steps), flush=True)
     wall = time.time() - t0
     omax, omean = overlaps()
+    own = own_overlaps() if method == 'CD' else (omax, omean)
     grains = sum(1 for b in O.bodies if b and b.dynamic and b.shape.__class__.__name__ == 'Sphere')
     row = dict(date=datetime.date.today().isoformat(), snapshot=os.path.relpath(args.snapshot, REPO) if args.snapshot.startswith(REPO) else args.snapshot,
                method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt, steps=steps,
                sim_time_s=args.time, wall_s='%.2f' % wall, wall_per_sim_s='%.1f' % (wall / args.time), grains=grains,
-               contacts=O.interactions.countReal(), overlap_mean_over_d='%.3e' % omean, overlap_max_over_d='%.3e' % omax)
+               contacts=O.interactions.countReal(), overlap_mean_over_d='%.3e' % omean, overlap_max_over_d='%.3e' % omax,
+               own_overlap_mean_over_d='%.3e' % own[1], own_overlap_max_over_d='%.3e' % own[0])
     print('  '.join('%s=%s' % kv for kv in row.items()), flush=True)
-    return row, wall, omean
+    return row, wall, own[1]
+
+
+def own_overlaps():
+    """Largest and mean grain–grain overlap beyond each contact's allowance, over the mean diameter."""
+    from yade.wrapper import Sphere
+    d = 2 * np.mean([b.shape.radius for b in O.bodies if isinstance(b.shape, Sphere)])
+    pen = [max(0.0, i.geom.penetrationDepth - (i.phys.overlapAllowance if np.isfinite(i.phys.overlapAllowance) else 0.0))
+           for i in O.interactions
+           if i.isReal and isinstance(O.bodies[i.id1].shape, Sphere) and isinstance(O.bodies[i.id2].shape, Sphere)]
+    return (max(pen) / d, np.mean(pen) / d) if pen else (0.0, 0.0)
 
 
 rows = []
 row, cd_wall, cd_overlap = run_case('CD')
 rows.append(row)
-first = None
+last = None
 for m in moduli:
     if m == 'auto':
-        e1, o1 = first
+        e1, o1 = last
         young = e1 * o1 / cd_overlap
         print('auto: E = %.3g Pa (from E = %.3g Pa, overlap %.3e d, CD %.3e d)' % (young, e1, o1, cd_overlap), flush=True)
     else:
         young = float(m)
     row, wall, ov = run_case('MD', young)
-    if first is None:
-        first = (young, ov)
+    last = (young, ov)
     rows.append(row)
 for r in rows:
     r['md_over_cd_wall'] = '%.2f' % (float(r['wall_s']) / cd_wall)
