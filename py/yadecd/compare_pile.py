@@ -21,12 +21,18 @@ FIELDS = ['case', 'label', 'method', 'young_Pa', 'dt_s', 'steps', 'wall_s', 'wal
           'hydrostatic_dPa', 'p_center_over_hydrostatic', 'floor_load_over_weight', 'overlap_max_over_d',
           'overlap_mean_over_d', 'unconverged_steps']
 
-def overlaps():
-    """Largest and mean overlap of grain–grain contacts over the mean diameter [-]."""
+def overlaps(beyond_allowance=False):
+    """Largest and mean overlap of grain–grain contacts over the mean diameter [-].
+    ``beyond_allowance``: only what exceeds each CD contact's ``CDPhys.overlapAllowance`` (the
+    overlap a state was built with, which CD keeps): the overlap CD itself adds."""
     from yade import O
     from yade.wrapper import Sphere
     d = 2 * np.mean([b.shape.radius for b in O.bodies if isinstance(b.shape, Sphere)])
-    pen = [max(0.0, i.geom.penetrationDepth) for i in O.interactions
+
+    def allowance(i):
+        a = getattr(i.phys, 'overlapAllowance', 0.0) if beyond_allowance else 0.0
+        return a if np.isfinite(a) else 0.0
+    pen = [max(0.0, i.geom.penetrationDepth - allowance(i)) for i in O.interactions
            if i.isReal and isinstance(O.bodies[i.id1].shape, Sphere) and isinstance(O.bodies[i.id2].shape, Sphere)]
     return (max(pen) / d, np.mean(pen) / d) if pen else (0.0, 0.0)
 

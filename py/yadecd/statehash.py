@@ -26,8 +26,8 @@ CASES = {}
 
 
 def _case(name, build, steps, **options):
-    """A case; its position correction is the plain one (the hashes recorded before the solver-core
-    refactor) unless ``correctionMomentum=True`` is given."""
+    """A case; its position correction is the plain one (the engine's default) unless
+    ``correctionMomentum=True`` is given."""
     options.setdefault('correctionMomentum', False)
     CASES[name] = (build, options, steps)
 
@@ -55,8 +55,8 @@ _case('mass_ratio100', lambda **o: scenes.mass_ratio_stack(100.0, **o), 50, tole
 _case('binary_restitution', lambda **o: scenes.binary_collision((1.0, 0.2, 0), (-0.5, 0, 0.1), en=0.6, et=0.2,
                                                                 gap=1e-4, offset=0.004), 40)
 _case('pile60', None, 1500)
-# the accelerated position correction (the engine's default since issue 16): landings in the loose
-# packing with height, colour and slab schedules, and the fed pile
+# the accelerated position correction (correctionMomentum, opt-in): landings in the loose packing
+# with height, colour and slab schedules, and the fed pile
 for _order in (1, 4, 5):
     _case('loose300_order%d_corrmom' % _order, lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
           sweepOrder=_order, correctionMomentum=True)

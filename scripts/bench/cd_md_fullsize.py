@@ -69,7 +69,7 @@ def run_case(method, young=None):
             print('  %s %s: step %d/%d' % (method, young or '', k + 1, warm + steps), flush=True)
     wall = time.time() - t0
     omax, omean = overlaps()
-    own = own_overlaps() if method == 'CD' else (omax, omean)
+    own = overlaps(beyond_allowance=True) if method == 'CD' else (omax, omean)
     grains = sum(1 for b in O.bodies if b and b.dynamic and b.shape.__class__.__name__ == 'Sphere')
     row = dict(date=datetime.date.today().isoformat(), snapshot=os.path.relpath(args.snapshot, REPO) if args.snapshot.startswith(REPO) else args.snapshot,
                method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt, steps=steps,
@@ -79,15 +79,6 @@ def run_case(method, young=None):
     print('  '.join('%s=%s' % kv for kv in row.items()), flush=True)
     return row, wall, own[1]
 
-
-def own_overlaps():
-    """Largest and mean grain–grain overlap beyond each contact's allowance, over the mean diameter."""
-    from yade.wrapper import Sphere
-    d = 2 * np.mean([b.shape.radius for b in O.bodies if isinstance(b.shape, Sphere)])
-    pen = [max(0.0, i.geom.penetrationDepth - (i.phys.overlapAllowance if np.isfinite(i.phys.overlapAllowance) else 0.0))
-           for i in O.interactions
-           if i.isReal and isinstance(O.bodies[i.id1].shape, Sphere) and isinstance(O.bodies[i.id2].shape, Sphere)]
-    return (max(pen) / d, np.mean(pen) / d) if pen else (0.0, 0.0)
 
 
 rows = []

@@ -129,7 +129,7 @@ namespace cd {
 		bool     recordResidual = false;
 		Real     positionTolerance = 1e-6;
 		int      maxProjectionIter = 200;
-		bool     correctionMomentum = true; // Nesterov's momentum in the position correction too
+		bool     correctionMomentum = false; // Nesterov's momentum in the position correction too (opt-in: see the integrator's attribute)
 	};
 
 	/*! What a solve reports (copied to the integrator's read-only attributes by the host). */
