@@ -15,6 +15,7 @@ ROOT/paper plus the stored per-run records of ``--reference`` (runs of the same 
 Settings: yadecd.protocol.SETTINGS.
 """
 import argparse
+import json
 import os
 import sys
 
@@ -78,7 +79,6 @@ def main(argv=None):
         for d in refs:
             path = os.path.join(d, '%s_%s.json' % (x['run'], x['epoch']))
             if os.path.exists(path):
-                import json
                 with open(path) as f:
                     y = json.load(f)
                 same.append((x['run'], x['epoch'], all(x.get(k) == y.get(k) for k in protocol.OBSERVABLES)))

@@ -586,9 +586,8 @@ class PileRun:
         scene = os.path.join(unit, 'scene.yade.gz')
         if meta.get('plugin_digest') == runstate.plugin_digest() and os.path.exists(scene):
             O.load(scene)
-            integ = O.engines[-1]   # attributes not saved with the scene come from the run's parameters
-            if hasattr(integ, 'correctionMomentum'):
-                integ.correctionMomentum = bool(self.p.get('correction_momentum', False))
+            # attributes not saved with the scene come from the run's parameters
+            O.engines[-1].correctionMomentum = bool(self.p.get('correction_momentum', False))
             self.clock.t0, self.clock.i0 = meta['time_offset'], meta['iter_offset']
             self.resumed_from = 'checkpoint %d, YADE archive: bit-identical continuation' % seq
         else:
