@@ -179,6 +179,28 @@ class TestResume(unittest.TestCase):
         print('rebuilt resume: largest position difference %.3g d_min' % gap)
         self.assertLess(gap, REBUILT_GAP)
 
+    def test_carried_resume(self):
+        """A run carried to another directory (yadecd.carry: state.npz only, as committed between
+        machines) resumes there through the state.npz path and ends where the uninterrupted run
+        ends, to the rebuilt path's gap; the source is untouched."""
+        from yadecd.carry import carry
+        run_dir = self.stopped_run('to_carry', stops=(0.1,))
+        before = sorted(os.listdir(os.path.join(run_dir, 'ckpt')))
+        dest = os.path.join(self.tmp, 'carried')
+        record = carry(run_dir, dest, log=lambda s: None)
+        self.assertEqual(sorted(os.listdir(os.path.join(run_dir, 'ckpt'))), before)
+        self.assertEqual(record['checkpoint_files_left_out'], ['scene.yade.gz'])
+        self.assertAlmostEqual(record['time'], 0.1, delta=1e-12)
+        self.assertFalse(os.path.exists(os.path.join(dest, 'ckpt', '%06d' % record['checkpoint'], 'scene.yade.gz')))
+        lines = []
+        pile.run(dest, resume=True, log=lines.append)
+        self.assertIn('rebuilt from state.npz', '\n'.join(lines))
+        end = faults.final_state(dest)
+        np.testing.assert_array_equal(end['ids'], self.ref['ids'])
+        np.testing.assert_array_equal(end['radius'], self.ref['radius'])
+        gap = np.abs(end['pos'] - self.ref['pos']).max() / pile.DEFAULTS['d_min']
+        self.assertLess(gap, REBUILT_GAP)
+
 
 class TestPreviousRelease(unittest.TestCase):
     """A checkpoint written by the first release (commit 6e7a405: checkpoint.yade.gz +

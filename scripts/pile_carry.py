@@ -1,0 +1,34 @@
+#!/usr/bin/env python3
+"""Carry a pile run between machines (yadecd.carry): its portable part, small enough to commit.
+
+    python3 scripts/pile_carry.py SRC_RUN DEST [--snap-every T]
+
+Copies run.json, progress.csv, the snapshots at multiples of T seconds (all by default; the
+newest always) and the newest valid checkpoint reduced to its state.npz (YADE's archive is left
+out) into DEST, replacing it whole. Continue the copy with
+``scripts/yade -n -x scripts/pile.py --out DEST --resume``; carrying it back to a working
+directory is the same command. Needs no YADE and no numpy.
+"""
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py'))
+from yadecd.carry import carry  # noqa: E402
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('src', help='run directory to carry (holds run.json and ckpt/)')
+    ap.add_argument('dest', help='destination directory (replaced whole)')
+    ap.add_argument('--snap-every', type=float, default=None,
+                    help='carry only the snapshots at multiples of this many seconds (and the newest); default all')
+    a = ap.parse_args(argv)
+    try:
+        carry(a.src, a.dest, snap_every=a.snap_every)
+    except (OSError, ValueError, RuntimeError) as e:
+        raise SystemExit('pile_carry: %s' % e)
+
+
+if __name__ == '__main__':
+    main()
