@@ -193,6 +193,38 @@ class TestConeState(unittest.TestCase):
         with open(os.path.join(self.dir, 'run.json')) as f:
             self.assertEqual(json.load(f)['n_grains'], 150)
 
+    def test_separating_dilation(self):
+        """Constructed spheres: the factor is the largest (r_i + r_j) / distance, 1 without overlap."""
+        r = np.array([1.0, 1.0, 0.5])
+        x = np.array([[0, 0, 0], [1.9, 0, 0], [0, 10, 0]])
+        self.assertAlmostEqual(pile.separating_dilation(x, r), 2 / 1.9, delta=1e-8)
+        x[2] = (0, 1.2, 0)                                   # 1.5 / 1.2 overlaps more
+        self.assertAlmostEqual(pile.separating_dilation(x, r), 1.5 / 1.2, delta=1e-8)
+        self.assertEqual(pile.separating_dilation([[0, 0, 0], [3, 0, 0]], [1, 1]), 1.0)
+        self.assertEqual(pile.separating_dilation([[0, 0, 0]], [1]), 1.0)
+        with self.assertRaisesRegex(ValueError, 'share a centre'):
+            pile.separating_dilation([[0, 0, 0], [0, 0, 0]], [1, 1])
+
+    def test_separated_cone_has_no_overlaps(self):
+        """separate=True: after settling, grain-grain overlaps are the engine's own (below its
+        position tolerance), where the plain cone keeps the packing's (checked larger, so the
+        comparison can fail)."""
+        def largest_overlap(path):
+            snap = np.load(path)
+            rad = dict(zip(snap['ids'].tolist(), snap['radius'].tolist()))
+            pos = dict(zip(snap['ids'].tolist(), map(tuple, snap['pos'])))
+            worst = 0.0
+            for a, b in zip(snap['c_id1'].tolist(), snap['c_id2'].tolist()):
+                if a in rad and b in rad:
+                    worst = max(worst, (rad[a] + rad[b] - np.linalg.norm(np.subtract(pos[a], pos[b]))) / min(rad[a], rad[b]))
+            return worst
+        with tempfile.TemporaryDirectory(prefix='cone_sep_') as d:
+            path = pile.cone_state(d, n_grains=150, settle=0.004, cell_grains=800, log=lambda *a: None, separate=True)
+            separated = largest_overlap(path)
+        plain = largest_overlap(self.path)
+        self.assertGreater(plain, 1e-4)
+        self.assertLess(separated, 2e-6)            # positionTolerance 1e-6 of the smaller radius, and round-off
+
     def test_bad_arguments(self):
         with self.assertRaises(ValueError) as cm:
             pile.cone_state(self.dir, n_grains=150, slope_deg=60)

@@ -186,7 +186,7 @@ def scene_from_snapshot(path, **overrides):
     return p
 
 
-def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=2000, log=print, **overrides):
+def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=2000, log=print, separate=False, **overrides):
     """A large pile state for solver benchmarks, built in minutes instead of by deposition.
 
     Grains of the protocol's diameter law in a dense random packing (YADE's
@@ -196,6 +196,12 @@ def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=
     simulated time. Writes ``run.json`` and ``snap_<t>.npz`` in ``run_dir`` (the format of
     :func:`run`'s snapshots, so ``scripts/bench/solver_bench.py --snapshot`` takes it) and returns
     the snapshot's path.
+
+    The dense packing's compression leaves overlaps (up to 2.6e-3 d at 14 000 grains), which CD
+    keeps as overlap allowances. With ``separate=True`` the kept grains are first spread apart
+    about the base centre by the factor :func:`separating_dilation` gives (the cone keeps its
+    slope and grows by that factor, about 0.3 %), so that no two grains overlap and the state
+    settles under gravity like a deposited one: the state to start soft-contact MD from.
 
     It stands in for the end state of the paper's deposition (14 000 grains, about 33 000
     contacts), which deposition would take about 40 h to reach here (docs/performance.md). Its
@@ -235,7 +241,11 @@ def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=
     # bottom-up, as a deposition creates them: body ids then follow height as in a deposited
     # pile, and a sweep in height order visits bodies close in memory
     kept = np.flatnonzero(inside(radius))
-    grains = [(centres[k], radii[k]) for k in kept[np.argsort(centres[kept, 2], kind='stable')]]
+    kept = kept[np.argsort(centres[kept, 2], kind='stable')]
+    scale = separating_dilation(centres[kept], radii[kept]) if separate else 1.0
+    grains = [(scale * centres[k], radii[k]) for k in kept]
+    if separate:
+        log('cone_state: grains spread apart by a factor %.6f (largest overlap removed)' % scale)
     log('cone_state: %d grains in a cone of radius %.2f cm, height %.2f cm (dense packing of %d grains: %.0f s)'
         % (len(grains), 100 * radius, 100 * radius * tan_s, len(radii), time.time() - t0))
     z0 = p['d_max']  # the paving's grains reach z = 2 r ≤ d_max
@@ -244,7 +254,7 @@ def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=
     mat = O.materials[0]
     for c, r in grains:
         O.bodies.append(utils.sphere((c[0], c[1], c[2] + z0), r, material=mat))
-    p.update(n_grains=len(grains), cone_slope_deg=slope_deg, cone_settle_s=settle)
+    p.update(n_grains=len(grains), cone_slope_deg=slope_deg, cone_settle_s=settle, cone_separated=bool(separate))
     with open(os.path.join(run_dir, 'run.json'), 'w') as f:
         json.dump(p, f, indent=1)
     steps, t1 = int(round(settle / p['dt'])), time.time()
@@ -258,6 +268,25 @@ def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=
     path = os.path.join(run_dir, 'snap_%08.3f.npz' % O.time)
     snapshot(path, {}, p)
     return path
+
+
+def separating_dilation(centres, radii, margin=1e-9):
+    """The factor s >= 1 by which spreading the spheres' centres apart about the origin (x -> s x)
+    leaves no two of them overlapping: max over touching pairs of (r_i + r_j) / |x_i - x_j|, times
+    1 + ``margin``; 1.0 when none overlaps. Every distance grows by the same factor, so the largest
+    relative overlap sets it."""
+    from scipy.spatial import cKDTree
+    centres, radii = np.asarray(centres, float), np.asarray(radii, float)
+    if len(radii) < 2:
+        return 1.0
+    pairs = cKDTree(centres).query_pairs(2 * radii.max(), output_type='ndarray')
+    if len(pairs) == 0:
+        return 1.0
+    dist = np.linalg.norm(centres[pairs[:, 0]] - centres[pairs[:, 1]], axis=1)
+    if (dist <= 0).any():
+        raise ValueError('separating_dilation: two spheres share a centre; no dilation separates them')
+    worst = ((radii[pairs[:, 0]] + radii[pairs[:, 1]]) / dist).max()
+    return max(1.0, float(worst)) * (1 + margin) if worst > 1 else 1.0
 
 
 # ----------------------------------------------------------------------------- creation rule

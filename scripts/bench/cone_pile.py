@@ -1,7 +1,7 @@
 """Build a large pile state for solver benchmarks in minutes (issue 6's ~33 000-contact state).
 
     scripts/yade -n -x scripts/bench/cone_pile.py --out out/cone14000 [--n-grains 14000]
-                       [--slope 28] [--settle 0.1] [--seed 1]
+                       [--slope 28] [--settle 0.1] [--seed 1] [--separate]
 
 A dense random packing of the protocol's grains cut to a cone, set on the paving and settled by
 the CD engine (``yadecd.pile.cone_state``). It writes ``run.json`` and one ``snap_*.npz`` that
@@ -20,6 +20,9 @@ parser.add_argument('--slope', type=float, default=28.0, help='cone slope [degre
                     '(2000 grains, robust fit, docs/pile.md); the former 22 was the biased estimator\'s reading')
 parser.add_argument('--settle', type=float, default=0.1, help='simulated settling time [s]')
 parser.add_argument('--seed', type=int, default=1)
+parser.add_argument('--separate', action='store_true', help='spread the packing apart so that no two grains overlap '
+                    '(the state to start soft-contact MD from, scripts/bench/cd_md_fullsize.py)')
 args = parser.parse_args(sys.argv[1:])
-path = pile.cone_state(args.out, n_grains=args.n_grains, slope_deg=args.slope, settle=args.settle, seed=args.seed)
+path = pile.cone_state(args.out, n_grains=args.n_grains, slope_deg=args.slope, settle=args.settle, seed=args.seed,
+                       separate=args.separate)
 print('cone pile state:', path)
