@@ -387,6 +387,37 @@ class TestProfile(unittest.TestCase):
         self.assertEqual(pa.floor_level(b2.snapshot()), 0.0)
 
 
+class TestRest(unittest.TestCase):
+    """rest_speed: a grain standing alone on the floor wall may roll (its horizontal speed is not
+    counted); a grain touching another grain, a grain in flight and a vertical motion on the wall
+    all count; unloaded (open) contacts do not make a grain touch anything."""
+
+    def test_constructed(self):
+        wall = 0                                               # id 0: no grain of the snapshot
+        b = Builder()
+        roller = b.grain((0, 0, 1e-3), vel=(1e-3, 2e-4, 0))
+        b.contact(wall, roller, (0, 0, 0), (0, 0, 0.01))
+        resting = b.grain((0.01, 0, 1e-3), vel=(0, 0, 1e-12))
+        paving = b.grain((0.012, 0, 1e-3), fixed=True, vel=(5, 5, 5))     # fixed: never counted
+        b.contact(wall, resting, (0.01, 0, 0), (0, 0, 0.01))
+        b.contact(paving, resting, (0.011, 0, 1e-3), (-0.001, 0, 0.001))
+        near = b.grain((0.002, 0, 1e-3), vel=(0, 0, 0))
+        b.contact(roller, near, (0.001, 0, 1e-3), (0, 0, 0))  # open contact within the alert distance
+        snap = b.snapshot()
+        np.testing.assert_array_equal(pa.wall_only_grains(snap), [True, False, False, False])
+        self.assertEqual(pa.rest_speed(snap), 1e-12)
+        snap['vel'][0, 2] = 3e-9                               # the roller lifts off: that counts
+        self.assertEqual(pa.rest_speed(snap), 3e-9)
+        snap['vel'][0, 2] = 0
+        snap['c_force'][3] = (0, 0, 0.001)                     # the roller now pushes on a grain
+        self.assertFalse(pa.wall_only_grains(snap)[0])
+        self.assertAlmostEqual(pa.rest_speed(snap), math.hypot(1e-3, 2e-4), delta=1e-15)
+        flight = Builder()
+        flight.grain((0, 0, 0.05), vel=(0, 0, -0.3))          # no contact at all: in flight
+        self.assertEqual(pa.rest_speed(flight.snapshot()), 0.3)
+        self.assertEqual(pa.rest_speed(Builder().snapshot()), 0.0)
+
+
 class TestFabricSpeedFossil(unittest.TestCase):
     def test_orientation_histogram(self):
         """theta = angle of the normal (as a line) from the vertical: normals +z and -z -> bin 0,

@@ -171,6 +171,35 @@ def pile_mask(snap):
     return free & touched
 
 
+def wall_only_grains(snap):
+    """Grains (not fixed) whose every loaded contact is with a body that is not a grain of the
+    snapshot (the floor wall), and that have at least one: grains standing alone on the flat
+    wall, between paving grains. Rolling there is a neutral equilibrium (CD has no rolling
+    resistance), so such a grain may keep a horizontal velocity in a pile that is otherwise at
+    rest. Returns a bool array (N,)."""
+    snap = _normalise(snap)
+    loaded = np.linalg.norm(snap['c_force'], axis=1) > 0
+    i1, i2 = body_index(snap, snap['c_id1'][loaded]), body_index(snap, snap['c_id2'][loaded])
+    on_wall = np.zeros(len(snap['pos']), dtype=bool)
+    on_grain = np.zeros(len(snap['pos']), dtype=bool)
+    for a, b in ((i1, i2), (i2, i1)):
+        on_wall[a[(a >= 0) & (b < 0)]] = True
+        on_grain[a[(a >= 0) & (b >= 0)]] = True
+    return ~snap['fixed'] & on_wall & ~on_grain
+
+
+def rest_speed(snap):
+    """How far a pile is from rest [m/s]: the largest speed of a free grain, where grains standing
+    alone on the floor wall (:func:`wall_only_grains`) count with their vertical speed only (they
+    may roll); grains in flight count in full. 0 for a snapshot without free grains."""
+    snap = _normalise(snap)
+    free = ~snap['fixed']
+    speed = np.linalg.norm(snap['vel'], axis=1)
+    rolling = wall_only_grains(snap)
+    speed[rolling] = np.abs(snap['vel'][rolling, 2])
+    return float(speed[free].max()) if free.any() else 0.0
+
+
 def floor_level(snap):
     """Height of the floor [m]: median height of the tops (z + radius) of the fixed paving grains,
     or 0 when there is none."""
