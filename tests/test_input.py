@@ -1,6 +1,5 @@
 """Bad input: every case raises a clear Python exception naming the culprit, and leaves the
 scene as it was (a failed step moves nothing)."""
-import math
 import unittest
 
 from yade import O, utils

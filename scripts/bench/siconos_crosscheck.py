@@ -16,7 +16,6 @@ import csv
 import datetime
 import os
 import sys
-import time
 
 import numpy as np
 
