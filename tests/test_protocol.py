@@ -88,6 +88,8 @@ class TestCompare(unittest.TestCase):
 
     def test_settings(self):
         self.assertEqual(pr.setting_options('h1e-3'), ['--dt', '0.001', '--tolerance', '0.001'])
+        self.assertEqual(pr.setting_options('h1e-3_cm'), ['--dt', '0.001', '--tolerance', '0.001', '--correction-momentum'])
+        self.assertEqual(pr.describe('h1e-3_cm'), 'h = 0.001 s, tolerance 0.001, correction momentum')
         with self.assertRaisesRegex(KeyError, 'h3e-3.*known: paper'):
             pr.setting_options('h3e-3')
 
