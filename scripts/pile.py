@@ -26,7 +26,7 @@ from yadecd import pile
 parser = argparse.ArgumentParser(prog='pile.py', description=__doc__.split('\n')[0])
 parser.add_argument('--out', default='out/pile', help='run directory (created)')
 parser.add_argument('--resume', action='store_true', help='continue the run in --out from its newest valid checkpoint '
-                    '(only --stop-time, --checkpoint-every and --vtk may be given anew)')
+                    '(only --stop-time, --checkpoint-every, --vtk and --parallel-min-contacts may be given anew)')
 parser.add_argument('--overwrite', action='store_true', help='start again in --out even if it holds a run (its files are removed)')
 for key, value in pile.DEFAULTS.items():
     flag = '--' + key.replace('_', '-')

@@ -31,7 +31,8 @@ class TestBadInput(unittest.TestCase):
         for kw, word in ((dict(tolerance=-1), 'tolerance'), (dict(tolerance=float('nan')), 'tolerance'),
                          (dict(maxIter=0), 'maxIter'), (dict(alertSpeedFactor=0.5), 'alertSpeedFactor'),
                          (dict(alertRatio=float('nan')), 'alertRatio'), (dict(sweepOrder=6), 'sweepOrder'),
-                         (dict(slabs=0), 'slabs'), (dict(slabs=65), 'slabs')):
+                         (dict(slabs=0), 'slabs'), (dict(slabs=65), 'slabs'),
+                         (dict(parallelMinContacts=-1), 'parallelMinContacts')):
             with self.assertRaises(ValueError) as cm:
                 ContactDynamicsIntegrator(**kw)
             self.assertIn(word, str(cm.exception))

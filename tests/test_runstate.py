@@ -241,7 +241,8 @@ class TestChecksBeforeWork(unittest.TestCase):
         bad = [('n_grains', 0), ('n_grains', 2.5), ('d_min', -0.001), ('d_max', 0.001), ('mu', -0.1), ('en', 1.5),
                ('dt', 0.0), ('rate', -1.0), ('tolerance', 2.0), ('max_iter', 0), ('relaxation', 2.0),
                ('sweep_order', 7), ('method', 'FEM'), ('epochs', '1,x'), ('epochs', '0'), ('snap_every', 0.0),
-               ('checkpoint_every', -1.0), ('dt', float('nan')), ('seed', 'one'), ('md_damping', 1.0)]
+               ('checkpoint_every', -1.0), ('dt', float('nan')), ('seed', 'one'), ('md_damping', 1.0),
+               ('parallel_min_contacts', -1), ('parallel_min_contacts', 2.5)]
         for key, value in bad:
             with self.subTest(key=key, value=value):
                 run_dir = os.path.join(self.tmp, 'bad_%s' % key)

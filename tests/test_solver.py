@@ -187,7 +187,7 @@ import hashlib, numpy as np
 from yade import O
 from yadecd import scenes
 import yadecd
-scenes.fcc_block(1400, sweepOrder=%d, maxIter=40, warnUnconverged=False)
+scenes.fcc_block(1400, sweepOrder=%d, maxIter=40, warnUnconverged=False, parallelMinContacts=0)
 O.run(3, True)
 cd = yadecd.integrator()
 v = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])

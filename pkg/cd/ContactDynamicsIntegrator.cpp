@@ -56,6 +56,7 @@ void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 		bad("sweepOrder=" + std::to_string(sweepOrder) + ": retired (measured worse than 1, by height, in docs/results.md); use 1, 4 (colours) or 5 (slabs).");
 	if (sweepOrder != 1 && sweepOrder != 4 && sweepOrder != 5) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 1 (height), 4 (colours) or 5 (slabs).");
 	if (slabs < 1 || slabs > 64) bad("slabs=" + std::to_string(slabs) + ": must lie in 1..64.");
+	if (parallelMinContacts < 0) bad("parallelMinContacts=" + std::to_string(parallelMinContacts) + ": must be 0 (always use the threads) or more.");
 	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
 }
 
@@ -170,6 +171,7 @@ cd::Params ContactDynamicsIntegrator::params() const
 	p.positionTolerance = positionTolerance;
 	p.maxProjectionIter = maxProjectionIter;
 	p.correctionMomentum = correctionMomentum;
+	p.parallelMinContacts = parallelMinContacts;
 	return p;
 }
 

@@ -58,6 +58,7 @@ DEFAULTS = dict(
     momentum=True,       # Nesterov momentum (piles: 3.9–5.5× fewer sweeps, 1.8–2.5× faster steps; docs/performance.md)
     correction_momentum=False,  # momentum in the position correction too: 4x fewer correction sweeps; opt-in until checked on whole piles (docs/performance.md)
     sweep_order=5,       # Gauss–Seidel order: 5 slabs (parallel with yade -j2, same results for any thread count), 1 height
+    parallel_min_contacts=10000,  # fewer contacts: sweeps on one thread (same results; 2 threads gain nothing there and collapse beside another busy process)
     vtk=False,           # also export VTK files (ParaView) at snapshots
     stop_time=0.0,       # s; > 0: checkpoint and stop there (continue later with resume)
     method='CD',         # 'CD', or 'MD': YADE's soft contacts (linear spring–slider) on the same protocol
@@ -140,6 +141,7 @@ def set_engines(p):
         O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
                             relaxation=p.get('relaxation', 1.0), momentum=bool(p.get('momentum', True)),
                             correctionMomentum=bool(p.get('correction_momentum', False)),
+                            parallelMinContacts=int(p.get('parallel_min_contacts', 10000)),
                             sweepOrder=int(p.get('sweep_order', 1)),
                             warnUnconverged=False)
         O.dt = p['dt']
@@ -395,7 +397,7 @@ def snapshot_times(p, t_end):
 # ----------------------------------------------------------------------------- parameters
 
 # Options a resumed run may be given anew; any other option must equal the run's own.
-RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk')
+RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk', 'parallel_min_contacts')
 
 
 def _epoch_list(epochs):
@@ -439,6 +441,8 @@ def check_params(p):
         ('max_iter', p['max_iter'] >= 1, '>= 1'),
         ('relaxation', 0 < p['relaxation'] < 2, 'in (0, 2)'),
         ('sweep_order', p['sweep_order'] in (0, 1, 2, 3, 4, 5), 'one of 0–5'),
+        ('parallel_min_contacts', p['parallel_min_contacts'] >= 0 and int(p['parallel_min_contacts']) == p['parallel_min_contacts'],
+         'an integer >= 0 (0: threads at any size)'),
         ('stop_time', p['stop_time'] >= 0, '>= 0 [s]'),
         ('method', p['method'] in ('CD', 'MD'), "'CD' or 'MD'"),
         ('young', p['young'] > 0, 'positive [Pa]'),
@@ -617,6 +621,7 @@ class PileRun:
             O.load(scene)
             # attributes not saved with the scene come from the run's parameters
             O.engines[-1].correctionMomentum = bool(self.p.get('correction_momentum', False))
+            O.engines[-1].parallelMinContacts = int(self.p.get('parallel_min_contacts', 10000))
             self.clock.t0, self.clock.i0 = meta['time_offset'], meta['iter_offset']
             self.resumed_from = 'checkpoint %d, YADE archive: bit-identical continuation' % seq
         else:

@@ -27,8 +27,11 @@ CASES = {}
 
 def _case(name, build, steps, **options):
     """A case; its position correction is the plain one (the engine's default) unless
-    ``correctionMomentum=True`` is given."""
+    ``correctionMomentum=True`` is given. Its sweeps use the threads at any size
+    (``parallelMinContacts`` 0): these scenes are below the default threshold, and the
+    two-thread hashes must exercise the parallel stages."""
     options.setdefault('correctionMomentum', False)
+    options.setdefault('parallelMinContacts', 0)
     CASES[name] = (build, options, steps)
 
 
@@ -82,7 +85,7 @@ def run_case(name):
         from . import pile
         with tempfile.TemporaryDirectory() as tmp:
             pile.run(os.path.join(tmp, 'run'), n_grains=60, relax=0.0, seed=7, snap_every=1e9, log=lambda s: None,
-                     correction_momentum=options['correctionMomentum'])
+                     correction_momentum=options['correctionMomentum'], parallel_min_contacts=0)
     else:
         build()
         cd = integrator()

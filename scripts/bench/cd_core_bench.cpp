@@ -8,7 +8,7 @@
 //     inside YADE).
 //
 //   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1]
-//                            [--tolerance T] [--time-sweeps 0|1]
+//                            [--tolerance T] [--time-sweeps 0|1] [--parallel-min-contacts N]
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
 //
 // Options not given keep the file's values. Threads: OMP_NUM_THREADS (the parallel schedules
@@ -94,6 +94,7 @@ int main(int argc, char** argv)
 	int         k1 = 20, k2 = 120, repeat = 3;
 	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
 	double      tolerance = -1;
+	long        parallelMin = -1;
 	for (int i = 2; i < argc; ++i) {
 		const std::string a = argv[i];
 		if (i + 1 >= argc) usage(("missing value after " + a).c_str());
@@ -105,6 +106,7 @@ int main(int argc, char** argv)
 		else if (a == "--tolerance") tolerance = std::stod(v);
 		else if (a == "--correction-momentum") corrMomentum = std::stoi(v);
 		else if (a == "--time-sweeps") timeSweeps = std::stoi(v);
+		else if (a == "--parallel-min-contacts") parallelMin = std::stol(v);
 		else if (a == "--k1") k1 = std::stoi(v);
 		else if (a == "--k2") k2 = std::stoi(v);
 		else if (a == "--repeat") repeat = std::stoi(v);
@@ -121,6 +123,7 @@ int main(int argc, char** argv)
 		if (sphere >= 0) p.sphereKernel = sphere;
 		if (tolerance > 0) p.tolerance = tolerance;
 		if (corrMomentum >= 0) p.correctionMomentum = corrMomentum;
+		if (parallelMin >= 0) p.parallelMinContacts = parallelMin;
 		int threads = 1;
 #ifdef _OPENMP
 		threads = omp_get_max_threads();

@@ -271,6 +271,41 @@ void correctionCheck(const std::string& name, const cd::SavedProblem& pb)
 	check(diff <= 10 * pb.params.positionTolerance, name + ": plain and accelerated corrections give the same pseudo-displacements (difference " + num(diff) + " of a radius; sweeps " + std::to_string(sweeps[0]) + " and " + std::to_string(sweeps[1]) + ")");
 }
 
+// The per-sweep stages on threads or on the calling thread (Params::parallelMinContacts 0 or
+// above the contact count): the same step, bit for bit, for the parallel schedules (colours,
+// slabs), with momentum in the solve and in the correction.
+void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
+{
+	for (int schedule : { 4, 5 }) {
+		std::vector<std::vector<Vector3r>> v, pv;
+		std::vector<std::map<Pair, Vector3r>> P;
+		std::vector<int> sweeps, corr;
+		for (long minContacts : { 0L, long(pb.contacts.size()) + 1 }) {
+			cd::Params p          = pb.params;
+			p.schedule            = schedule;
+			p.correctionMomentum  = true;
+			p.parallelMinContacts = minContacts;
+			cd::Solver s;
+			pb.load(s);
+			s.assemble(p);
+			sweeps.push_back(s.solve(p).iterations);
+			corr.push_back(s.correct(p).iterations);
+			P.push_back(globalImpulses(s));
+			std::vector<Vector3r> vb, pb_;
+			for (size_t b = 0; b < s.bodies.size(); ++b) {
+				vb.push_back(s.bodies[b].v);
+				vb.push_back(s.bodies[b].w);
+				pb_.push_back(s.records[b].pv);
+			}
+			v.push_back(vb);
+			pv.push_back(pb_);
+		}
+		check(sweeps[0] == sweeps[1] && corr[0] == corr[1] && P[0] == P[1] && v[0] == v[1] && pv[0] == pv[1],
+		      name + " [schedule " + std::to_string(schedule) + "]: threaded and serial sweeps give the same step, bit for bit (" +
+		              std::to_string(sweeps[0]) + " sweeps)");
+	}
+}
+
 void roundTrip(const std::string& name, const std::string& path, const cd::SavedProblem& pb)
 {
 	std::ifstream f(path);
@@ -321,6 +356,7 @@ void cdtest::solverTests(const std::string& dataDir)
 		reproduceEngine(n, pb, e);
 		optionGrid(n, pb, e);
 		correctionCheck(n, pb);
+		threadsCheck(n, pb);
 		roundTrip(n, path, pb);
 	}
 }

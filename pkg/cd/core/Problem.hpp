@@ -130,6 +130,7 @@ namespace cd {
 		Real     positionTolerance = 1e-6;
 		int      maxProjectionIter = 200;
 		bool     correctionMomentum = false; // Nesterov's momentum in the position correction too (opt-in: see the integrator's attribute)
+		long     parallelMinContacts = 10000; // fewer contacts: the per-sweep stages run on the calling thread (same results; not a problem option, not in problem files)
 	};
 
 	/*! What a solve reports (copied to the integrator's read-only attributes by the host). */

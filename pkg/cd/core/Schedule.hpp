@@ -41,6 +41,13 @@ namespace cd {
 		int                nInterface = 0; // Slabs: contacts in the serial interface
 
 		int ranges() const { return int(bounds.size()) - 1; }
+		/*! Run every stage on the calling thread, ranges in their order (the same results: the
+		 *  ranges of a parallel stage share no dynamic body). */
+		void serial()
+		{
+			for (Stage& st : stages)
+				st.parallel = false;
+		}
 
 		/*! Build the schedule of the given kind, permuting the set's contacts into its order. */
 		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, const Vector3r& up);

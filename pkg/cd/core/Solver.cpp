@@ -315,6 +315,11 @@ namespace cd {
 		Real       omega = p.relaxation, bestChange = std::numeric_limits<Real>::infinity();
 		int        stalled = 0;
 		order.build(p.schedule, contacts, records, p.slabs, p.up);
+		// A sweep opens a parallel region per stage: on small problems two threads gain nothing
+		// and, when another process takes a core, their spinning barriers cost 15x
+		// (docs/performance.md, "Two threads beside another process").
+		sweepThreads = long(contacts.size()) >= p.parallelMinContacts;
+		if (!sweepThreads) order.serial();
 		stats.nColours   = order.nColours;
 		stats.nInterface = order.nInterface;
 		rangeChange.assign(order.ranges(), 0);
@@ -387,7 +392,7 @@ namespace cd {
 	void Solver::extrapolate(Real beta)
 	{
 		const long nb = long(bodies.size());
-#pragma omp parallel for schedule(static) if (nb >= 4096)
+#pragma omp parallel for schedule(static) if (sweepThreads && nb >= 4096)
 		for (long b = 0; b < nb; ++b) { // obstacles: v = vPrev (never written), unchanged
 			Body&          B = bodies[b];
 			const Vector3r v = B.v, w = B.w;
@@ -481,7 +486,7 @@ namespace cd {
 	void Solver::extrapolateCorrection(Real beta)
 	{
 		const long nb = long(bodies.size());
-#pragma omp parallel for schedule(static) if (nb >= 4096)
+#pragma omp parallel for schedule(static) if (sweepThreads && nb >= 4096)
 		for (long b = 0; b < nb; ++b) {
 			const Vector3r v = pseudoV[b], w = records[b].pw;
 			pseudoV[b] += beta * (v - pvPrev[b]);

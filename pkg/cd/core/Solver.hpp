@@ -43,6 +43,7 @@ namespace cd {
 
 	private:
 		Schedule              order;
+		bool                  sweepThreads = true; // the last solve's per-sweep stages may use threads (Params::parallelMinContacts)
 		std::vector<Real>     rangeChange;  // per range, the sweep's Σ(W_NN|Δr|)²
 		std::vector<int>      rangeStatus;  // per range, status changes
 		std::vector<Real>     contactChange; // per contact, the sweep's (W_NN|Δr|)² (schedules summing per contact)
