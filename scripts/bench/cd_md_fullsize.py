@@ -2,12 +2,13 @@
 same simulated time, fed by the same protocol (issue 16, done-criterion 1).
 
     scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py --snapshot RUN/snap.npz [--time 0.01] [--warmup 0.002]
-        [--young 1e9,auto] [--out docs/data/cd_md_fullsize.csv]
+        [--cd-dt 2e-4,1e-3] [--young 1e9,auto] [--out docs/data/cd_md_fullsize.csv]
 
 Every case restarts from the snapshot (``yadecd.pile.scene_from_snapshot``), keeps feeding grains
 by the protocol's rule (200 per second, the same grains in every case), runs ``--warmup``
 simulated seconds untimed (a snapshot holds no impulses: CD's first steps are cold solves, and MD's
-springs must first take up the load) and then ``--time`` simulated seconds, timed: CD at the paper's h = 2e-4 s and tolerance 1e-3, MD (linear spring and
+springs must first take up the load) and then ``--time`` simulated seconds, timed: CD at the
+paper's h = 2e-4 s (and any further ``--cd-dt``, e.g. the faster protocol's 1e-3) and tolerance 1e-3, MD (linear spring and
 Coulomb slider, ``yadecd.md``, global damping 0.2, O.dt = 0.5 · PWaveTimeStep) at each Young's
 modulus of ``--young``. ``auto`` is the modulus at which MD's mean grain–grain overlap equals CD's:
 a linear contact's overlap under a given load is inversely proportional to E, so it is read off
@@ -38,6 +39,7 @@ ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run.json beside it gives the protocol)')
 ap.add_argument('--time', type=float, default=0.01, help='simulated seconds timed per case')
 ap.add_argument('--warmup', type=float, default=0.002, help='simulated seconds run untimed first')
+ap.add_argument('--cd-dt', default='2e-4', help='CD time steps [s], comma-separated; the first is the one MD is matched to')
 ap.add_argument('--young', default='1e9,auto', help="MD Young's moduli [Pa], comma-separated; 'auto' matches CD's mean overlap")
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'cd_md_fullsize.csv'))
 args = ap.parse_args()
@@ -50,9 +52,9 @@ if moduli and moduli[0] == 'auto':
     ap.error("--young: 'auto' needs a numeric modulus before it")
 
 
-def run_case(method, young=None):
+def run_case(method, young=None, dt=None):
     """Restart from the snapshot, feed and run --time simulated seconds; returns the CSV row."""
-    over = dict(method=method) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
+    over = dict(method=method, dt=dt) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
     p = pile.scene_from_snapshot(args.snapshot, **over)
     period = max(1, int(round(1 / (p['rate'] * p['dt']))))
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
@@ -82,8 +84,16 @@ def run_case(method, young=None):
 
 
 rows = []
-row, cd_wall, cd_overlap = run_case('CD')
+try:
+    cd_steps = [float(x) for x in args.cd_dt.split(',') if x.strip()]
+except ValueError:
+    ap.error('--cd-dt: comma-separated time steps in seconds, got %r' % args.cd_dt)
+if not cd_steps or min(cd_steps) <= 0:
+    ap.error('--cd-dt needs at least one positive time step')
+row, cd_wall, cd_overlap = run_case('CD', dt=cd_steps[0])
 rows.append(row)
+for dt in cd_steps[1:]:
+    rows.append(run_case('CD', dt=dt)[0])
 last = None
 for m in moduli:
     if m == 'auto':
