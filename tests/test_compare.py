@@ -187,5 +187,58 @@ class TestCompareMD(unittest.TestCase):
             self.assertAlmostEqual(r['restitution'], 0.5, delta=0.01)
 
 
+class TestLoadedOverlaps(unittest.TestCase):
+    """compare_pile.loaded_overlaps on constructed pairs of fixed spheres under YADE's linear MD:
+    the overlap from positions of the pairs that carry a force (a pair within reach of the
+    collider but not touching is left out), over the mean diameter."""
+
+    def test_constructed_pairs(self):
+        from yade import utils
+        from yadecd.compare_pile import loaded_overlaps
+        from yadecd.md import md_engines
+        O.reset()
+        mat = scenes.material(0.4, 1000.0)
+        r, d1, d2 = 1e-3, 4e-6, 1e-6
+        pairs = [((0, 0, 0), (2 * r - d1, 0, 0)), ((0, 0.01, 0), (0, 0.01, 2 * r - d2)),
+                 ((0, 0.02, 0), (2 * r + 1e-5, 0.02, 0))]          # the third pair: a gap, no force
+        for a, b in pairs:
+            for x in (a, b):
+                O.bodies.append(utils.sphere(x, r, fixed=True, material=mat))
+        O.engines = md_engines(gravity=(0, 0, 0))
+        O.engines[1].verletDist = 5e-5                                  # the third pair is found by the collider
+        O.dt = 1e-7
+        O.step()
+        self.assertEqual(O.interactions.countReal(), 2)
+        omax, omean, n = loaded_overlaps()
+        self.assertEqual(n, 2)
+        self.assertAlmostEqual(omax, d1 / (2 * r), delta=1e-12)
+        self.assertAlmostEqual(omean, (d1 + d2) / 2 / (2 * r), delta=1e-12)
+
+    def test_cd_allowance_and_open_contacts(self):
+        """Under CD: a grain standing on a fixed grain with a construction overlap (kept as its
+        allowance: counted only with beyond_allowance=False), and an open near contact (real,
+        no force: left out)."""
+        from yade import utils
+        from yadecd.compare_pile import loaded_overlaps
+        O.reset()
+        mat = scenes.material(0.4, 1000.0)
+        r, delta = 1e-3, 3e-6
+        O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+        O.bodies.append(utils.sphere((0, 0, r), r, fixed=True, material=mat))
+        O.bodies.append(utils.sphere((0, 0, 3 * r - delta), r, material=mat))            # on it, overlapping by delta
+        O.bodies.append(utils.sphere((0.01, 0, r), r, material=mat))                     # on the wall
+        O.bodies.append(utils.sphere((0.01 + 2 * r + 1e-6, 0, r), r, fixed=True, material=mat))  # 1 µm away
+        O.engines = yadecd.engines(gravity=(0, 0, -9.81))
+        O.dt = 1e-4
+        O.run(3, True)
+        grain_pairs = [i for i in O.interactions if i.isReal and i.id1 > 0 and i.id2 > 0]
+        self.assertEqual(len(grain_pairs), 2, 'the standing pair and the open near pair')
+        omax, omean, n = loaded_overlaps(beyond_allowance=False)
+        self.assertEqual(n, 1)
+        self.assertAlmostEqual(omax, delta / (2 * r), delta=1e-6 * r / (2 * r))
+        omax, omean, n = loaded_overlaps(beyond_allowance=True)
+        self.assertLess(omax, 1e-6)                    # CD adds no overlap beyond the allowance (positionTolerance)
+
+
 if __name__ == '__main__':
     unittest.main()

@@ -37,6 +37,29 @@ def overlaps(beyond_allowance=False):
     return (max(pen) / d, np.mean(pen) / d) if pen else (0.0, 0.0)
 
 
+def loaded_overlaps(beyond_allowance=True):
+    """Largest and mean overlap over the mean diameter [-] of the grain–grain contacts that carry
+    a force, from the bodies' *positions* (the state at the end of the step, measured alike for
+    both methods: CD's contact geometry is that of its mid-step predictor, so a moving grain's
+    contact shows an overlap of up to h/2 times its approach speed there, and CD counts open
+    contacts within its alert distance, MD only touching ones). ``beyond_allowance``: CD's
+    overlap allowances (a state's construction overlaps) are subtracted."""
+    from yade import O
+    from yade.wrapper import Sphere
+    from .measure import gap
+    d = 2 * np.mean([b.shape.radius for b in O.bodies if isinstance(b.shape, Sphere)])
+    pen = []
+    for i in O.interactions:
+        b1, b2 = O.bodies[i.id1], O.bodies[i.id2]
+        if not (i.isReal and isinstance(b1.shape, Sphere) and isinstance(b2.shape, Sphere)):
+            continue
+        if (i.phys.normalForce + i.phys.shearForce).norm() == 0:
+            continue
+        a = getattr(i.phys, 'overlapAllowance', 0.0) if beyond_allowance else 0.0
+        pen.append(max(0.0, -gap(b1, b2) - (a if np.isfinite(a) else 0.0)))
+    return (max(pen) / d, np.mean(pen) / d, len(pen)) if pen else (0.0, 0.0, 0)
+
+
 def run_case(key, opts):
     """Build and run one case by the pile protocol, analyse it, return its CSV row."""
     from yade import O

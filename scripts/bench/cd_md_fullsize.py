@@ -14,12 +14,15 @@ modulus of ``--young``. ``auto`` is the modulus at which MD's mean grain–grain
 a linear contact's overlap under a given load is inversely proportional to E, so it is read off
 the MD case before it (E_auto = E_prev · overlap_prev / overlap_CD) and then *run*, not
 extrapolated; ``1e9,auto,auto`` refines it once more.
-Recorded per case: wall time, steps, wall time per simulated second, grains, contacts, the
-grain–grain overlaps at the end over the mean diameter (mean and largest); for CD also beyond each
-contact's overlap allowance (``CDPhys.overlapAllowance``: overlaps a state was built with, which CD
-keeps; CD's own overlap is what it adds, and that is what MD is matched to); the ratio of MD's to
-CD's wall time per simulated second. Use a deposited pile's snapshot: a state built with overlaps
-(``cone_pile.py``'s cone, up to 2.6e-3 d) sends MD's stiff springs off. Run it on an idle machine.
+Recorded per case: wall time, steps, wall time per simulated second, grains, contacts, and the
+grain–grain overlaps at the end over the mean diameter, two ways: of the contacts that carry a
+force, from the bodies' positions (``compare_pile.loaded_overlaps``; for CD beyond each contact's
+``overlapAllowance``, the overlaps a state was built with), which is what ``auto`` matches; and,
+for reference, from the contact geometry over all contacts (CD's is its mid-step predictor's,
+which shows up to h/2 times a grain's approach speed, and includes its open near contacts).
+The ratio of MD's to CD's wall time per simulated second is relative to the first CD case. Use
+a deposited or relaxed pile's snapshot (``cone_pile.py --separate`` builds one without
+construction overlaps); run it on an idle machine.
 """
 import argparse
 import csv
@@ -33,7 +36,7 @@ sys.path.insert(0, os.path.join(REPO, 'py'))
 import numpy as np  # noqa: E402
 from yade import O  # noqa: E402
 from yadecd import pile  # noqa: E402
-from yadecd.compare_pile import overlaps  # noqa: E402
+from yadecd.compare_pile import loaded_overlaps, overlaps  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run.json beside it gives the protocol)')
@@ -71,15 +74,16 @@ def run_case(method, young=None, dt=None):
             print('  %s %s: step %d/%d' % (method, young or '', k + 1, warm + steps), flush=True)
     wall = time.time() - t0
     omax, omean = overlaps()
-    own = overlaps(beyond_allowance=True) if method == 'CD' else (omax, omean)
+    lmax, lmean, loaded = loaded_overlaps(beyond_allowance=(method == 'CD'))
     grains = sum(1 for b in O.bodies if b and b.dynamic and b.shape.__class__.__name__ == 'Sphere')
     row = dict(date=datetime.date.today().isoformat(), snapshot=os.path.relpath(args.snapshot, REPO) if args.snapshot.startswith(REPO) else args.snapshot,
                method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt, steps=steps,
                sim_time_s=args.time, wall_s='%.2f' % wall, wall_per_sim_s='%.1f' % (wall / args.time), grains=grains,
-               contacts=O.interactions.countReal(), overlap_mean_over_d='%.3e' % omean, overlap_max_over_d='%.3e' % omax,
-               own_overlap_mean_over_d='%.3e' % own[1], own_overlap_max_over_d='%.3e' % own[0])
+               contacts=O.interactions.countReal(), loaded_contacts=loaded,
+               loaded_overlap_mean_over_d='%.3e' % lmean, loaded_overlap_max_over_d='%.3e' % lmax,
+               geom_overlap_mean_over_d='%.3e' % omean, geom_overlap_max_over_d='%.3e' % omax)
     print('  '.join('%s=%s' % kv for kv in row.items()), flush=True)
-    return row, wall, own[1]
+    return row, wall, lmean
 
 
 
