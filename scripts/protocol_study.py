@@ -41,6 +41,8 @@ def main(argv=None):
                    help='directory of stored per-run records of the paper setting (default docs/data/ensemble_runs)')
     a.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'protocol_study'))
     a.add_argument('--figure', default=os.path.join(REPO, 'docs', 'figures', 'protocol_study'))
+    a.add_argument('--wall-note', default='one thread per pile, two piles at a time on two cores',
+                   help='how the wall times were measured (figure subtitle)')
     args = p.parse_args(argv)
 
     if args.cmd == 'run':
@@ -108,7 +110,7 @@ def main(argv=None):
         text.append('## %s\n' % ('End of the feed' if epoch == 'feed' else 'After the relaxation'))
         text.append(protocol.table_markdown({k: v for k, v in results.items() if k != 'paper'}, epoch, args.size))
         if results:
-            protocol.figure(results, ref, '%s_%s.png' % (args.figure, epoch), epoch, args.size)
+            protocol.figure(results, ref, '%s_%s.png' % (args.figure, epoch), epoch, args.size, wall_note=args.wall_note)
     if walls['paper']:
         text.append('Paper setting, wall time per pile here: %.1f min (%d runs).\n'
                     % (sum(walls['paper'].values()) / len(walls['paper']) / 60, len(walls['paper'])))

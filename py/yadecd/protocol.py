@@ -171,7 +171,7 @@ def table_markdown(results, epoch, n_grains):
 
 
 def figure(results, ref_records, path, epoch, n_grains, keys=('slope_deg', 'packing_fraction', 'dip_D',
-                                                                   'p_ring_over_hydrostatic', 'H_m', 'law_advantage_deg')):
+                                                                   'p_ring_over_hydrostatic', 'H_m', 'law_advantage_deg'), wall_note='one thread per pile, two piles at a time on two cores'):
     """Each observable's mean and 95 % interval per setting against the wall time per pile,
     the paper's mean ± one seed spread as a band."""
     import matplotlib
@@ -205,8 +205,7 @@ def figure(results, ref_records, path, epoch, n_grains, keys=('slope_deg', 'pack
     handles, labels = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc='lower center', ncol=4, fontsize=8)
     fig.suptitle('%d-grain piles, %s: settings against the paper\'s protocol (bars: the setting\'s mean + Welch 95 %% '
-                 'interval of its difference; "differs": in the slope)\nwall time: one thread per pile, two piles at a time '
-                 'on two cores' % (n_grains, epoch), fontsize=9)
+                 'interval of its difference; "differs": in the slope)\nwall time: %s' % (n_grains, epoch, wall_note), fontsize=9)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=130)
     plt.close(fig)
