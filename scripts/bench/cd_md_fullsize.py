@@ -2,7 +2,7 @@
 same simulated time, fed by the same protocol (issue 16, done-criterion 1).
 
     scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py --snapshot RUN/snap.npz [--time 0.01] [--warmup 0.002]
-        [--cd-dt 2e-4,1e-3] [--young 1e9,auto] [--out docs/data/cd_md_fullsize.csv]
+        [--cd-dt 2e-4,1e-3] [--young 1e9,auto] [--md-scale-time] [--out docs/data/cd_md_fullsize.csv]
 
 Every case restarts from the snapshot (``yadecd.pile.scene_from_snapshot``), keeps feeding grains
 by the protocol's rule (200 per second, the same grains in every case), runs ``--warmup``
@@ -20,11 +20,12 @@ force, from the bodies' positions (``compare_pile.loaded_overlaps``; for CD beyo
 ``overlapAllowance``, the overlaps a state was built with), which is what ``auto`` matches; and,
 for reference, from the contact geometry over all contacts (CD's is its mid-step predictor's,
 which shows up to h/2 times a grain's approach speed, and includes its open near contacts).
-The ratio of MD's to CD's wall time per simulated second is relative to the first CD case. Use
+Each case's wall time per simulated second is also given relative to the first CD case's. Use
 a deposited or relaxed pile's snapshot (``cone_pile.py --separate`` builds one without
 construction overlaps); run it on an idle machine.
 """
 import argparse
+import math
 import csv
 import datetime
 import os
@@ -42,6 +43,9 @@ ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run.json beside it gives the protocol)')
 ap.add_argument('--time', type=float, default=0.01, help='simulated seconds timed per case')
 ap.add_argument('--warmup', type=float, default=0.002, help='simulated seconds run untimed first')
+ap.add_argument('--md-scale-time', action='store_true', help='run each MD case after the first for --time and --warmup times '
+                'sqrt(E_first / E): the same number of steps and of elastic oscillation periods (so the load is taken up alike), '
+                'where a stiff modulus would need many more steps per simulated second')
 ap.add_argument('--cd-dt', default='2e-4', help='CD time steps [s], comma-separated; the first is the one MD is matched to')
 ap.add_argument('--young', default='1e9,auto', help="MD Young's moduli [Pa], comma-separated; 'auto' matches CD's mean overlap")
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'cd_md_fullsize.csv'))
@@ -55,13 +59,14 @@ if moduli and moduli[0] == 'auto':
     ap.error("--young: 'auto' needs a numeric modulus before it")
 
 
-def run_case(method, young=None, dt=None):
+def run_case(method, young=None, dt=None, scale=1.0):
     """Restart from the snapshot, feed and run --time simulated seconds; returns the CSV row."""
     over = dict(method=method, dt=dt) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
     p = pile.scene_from_snapshot(args.snapshot, **over)
     period = max(1, int(round(1 / (p['rate'] * p['dt']))))
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
-    warm, steps = int(round(args.warmup / O.dt)), int(round(args.time / O.dt))
+    sim, warmup = args.time * scale, args.warmup * scale
+    warm, steps = int(round(warmup / O.dt)), int(round(sim / O.dt))
     t0, last = time.time(), time.time()
     for k in range(warm + steps):
         if k == warm:
@@ -78,7 +83,7 @@ def run_case(method, young=None, dt=None):
     grains = sum(1 for b in O.bodies if b and b.dynamic and b.shape.__class__.__name__ == 'Sphere')
     row = dict(date=datetime.date.today().isoformat(), snapshot=os.path.relpath(args.snapshot, REPO) if args.snapshot.startswith(REPO) else args.snapshot,
                method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt, steps=steps,
-               sim_time_s=args.time, wall_s='%.2f' % wall, wall_per_sim_s='%.1f' % (wall / args.time), grains=grains,
+               sim_time_s=sim, wall_s='%.2f' % wall, wall_per_sim_s='%.1f' % (wall / sim), grains=grains,
                contacts=O.interactions.countReal(), loaded_contacts=loaded,
                loaded_overlap_mean_over_d='%.3e' % lmean, loaded_overlap_max_over_d='%.3e' % lmax,
                geom_overlap_mean_over_d='%.3e' % omean, geom_overlap_max_over_d='%.3e' % omax)
@@ -98,7 +103,7 @@ row, cd_wall, cd_overlap = run_case('CD', dt=cd_steps[0])
 rows.append(row)
 for dt in cd_steps[1:]:
     rows.append(run_case('CD', dt=dt)[0])
-last = None
+last, first = None, None
 for m in moduli:
     if m == 'auto':
         e1, o1 = last
@@ -106,11 +111,12 @@ for m in moduli:
         print('auto: E = %.3g Pa (from E = %.3g Pa, overlap %.3e d, CD %.3e d)' % (young, e1, o1, cd_overlap), flush=True)
     else:
         young = float(m)
-    row, wall, ov = run_case('MD', young)
+    first = young if first is None else first
+    row, wall, ov = run_case('MD', young, scale=math.sqrt(first / young) if args.md_scale_time else 1.0)
     last = (young, ov)
     rows.append(row)
-for r in rows:
-    r['md_over_cd_wall'] = '%.2f' % (float(r['wall_s']) / cd_wall)
+for r in rows:   # wall time per simulated second, relative to the first CD case's
+    r['over_first_cd_per_sim_s'] = '%.2f' % (float(r['wall_s']) / float(r['sim_time_s']) / (cd_wall / args.time))
 os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
 with open(args.out, 'w', newline='') as f:
     w = csv.DictWriter(f, fieldnames=list(rows[0]))
