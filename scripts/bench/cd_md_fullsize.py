@@ -26,7 +26,6 @@ construction overlaps); run it on an idle machine.
 """
 import argparse
 import math
-import csv
 import datetime
 import os
 import sys
@@ -38,6 +37,7 @@ import numpy as np  # noqa: E402
 from yade import O  # noqa: E402
 from yadecd import pile  # noqa: E402
 from yadecd.compare_pile import loaded_overlaps, overlaps  # noqa: E402
+from yadecd.benchio import write_csv  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run.json beside it gives the protocol)')
@@ -117,9 +117,4 @@ for m in moduli:
     rows.append(row)
 for r in rows:   # wall time per simulated second, relative to the first CD case's
     r['over_first_cd_per_sim_s'] = '%.2f' % (float(r['wall_s']) / float(r['sim_time_s']) / (cd_wall / args.time))
-os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-with open(args.out, 'w', newline='') as f:
-    w = csv.DictWriter(f, fieldnames=list(rows[0]))
-    w.writeheader()
-    w.writerows(rows)
-print('wrote', args.out)
+write_csv(args.out, rows)

@@ -8,14 +8,13 @@ sweeps taken, the residual reached and the relative floor-force error, then the 
 warm-started sequence of steps (the way a simulation actually runs). Prints and saves CSV.
 """
 import argparse
-import csv
-import os
 import sys
 import time
 
 from yade import O
 import yadecd
 from yadecd import scenes
+from yadecd.benchio import write_csv
 
 ap = argparse.ArgumentParser()
 ap.add_argument('--n', type=int, nargs='+', default=[10, 40, 160])
@@ -45,9 +44,4 @@ for n in a.n:
                              floor_force_rel_error=err, wall_ms=ms, converged=cd.converged))
             print('%5d %8.0e %8s %10d %12.3e %10.2e %.1f' % (n, tol, mode, sweeps, cd.residual, err, ms))
             sys.stdout.flush()
-os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-with open(a.out, 'w', newline='') as f:
-    w = csv.DictWriter(f, fieldnames=list(rows[0]))
-    w.writeheader()
-    w.writerows(rows)
-print('saved', a.out)
+write_csv(a.out, rows)

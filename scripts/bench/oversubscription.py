@@ -13,7 +13,6 @@ correction time [ms] per setting (best of --repeat inside each run; median over 
 ratio to one thread alone. Nothing else may run meanwhile (pause long jobs with kill -STOP).
 """
 import argparse
-import csv
 import datetime
 import os
 import re
@@ -23,6 +22,8 @@ import sys
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(REPO, 'py'))
+from yadecd.benchio import write_csv  # noqa: E402
 ALWAYS = ['--parallel-min-contacts', '0']     # threads at any size (the engine before parallelMinContacts)
 SETTINGS = [  # name, threads, busy competitor, extra environment, cd_core_bench options
     ('1 thread, alone', 1, False, {}, []),
@@ -81,12 +82,7 @@ def main():
                          step_ms_median='%.1f' % med, rounds=' '.join('%.1f' % t for t in times[name]),
                          over_1_thread_alone='%.2f' % (med / base)))
         print('%-52s median %9.1f ms   x%.2f of 1 thread alone' % (name, med, med / base))
-    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-    with open(a.out, 'w', newline='') as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print('wrote', a.out)
+    write_csv(a.out, rows)
 
 
 if __name__ == '__main__':

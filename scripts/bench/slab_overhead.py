@@ -18,6 +18,8 @@ import sys
 import tempfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(REPO, 'py'))
+from yadecd.benchio import write_csv  # noqa: E402
 
 
 def main(argv=None):
@@ -45,12 +47,7 @@ def main(argv=None):
                 print(proc.stdout.strip().split('\n')[1].strip(), '| slabs %d, %d thread(s)' % (slabs, threads), flush=True)
         with open(out) as f:
             rows = list(csv.DictReader(f))
-    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-    with open(a.out, 'w', newline='') as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    print('wrote', a.out)
+    write_csv(a.out, rows)
     plot(rows, a.figure)
     return 0
 
