@@ -5,6 +5,8 @@ TestResume.test_carried_resume."""
 import json
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 import unittest
 
@@ -116,6 +118,17 @@ class TestCarry(unittest.TestCase):
         with self.assertRaisesRegex(CheckpointError, 'no checkpoint yet'):
             carry(self.src, self.dest, **QUIET)
         self.assertFalse(os.path.exists(self.dest))
+
+    def test_command_line(self):
+        """scripts/pile_carry.py: carries, and names the culprit on bad input (exit status 1)."""
+        script = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'scripts', 'pile_carry.py')
+        python = '/usr/bin/python3' if os.path.exists('/usr/bin/python3') else sys.executable
+        ok = subprocess.run([python, script, self.src, self.dest, '--snap-every', '2'], capture_output=True, text=True)
+        self.assertEqual(ok.returncode, 0, ok.stderr)
+        self.assertIn('checkpoint 2 at t=2.0 s', ok.stdout)
+        bad = subprocess.run([python, script, self.tmp, self.dest], capture_output=True, text=True)
+        self.assertEqual(bad.returncode, 1)
+        self.assertIn('no run.json', bad.stderr)
 
 
 if __name__ == '__main__':
