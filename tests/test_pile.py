@@ -65,6 +65,25 @@ class TestCreationRule(unittest.TestCase):
             self.assertGreaterEqual(z, r)
 
 
+class TestEta(unittest.TestCase):
+    """eta_seconds against hand integrals: constant cost, cost growing linearly with the grain
+    count during the feed, the relaxation at the final count, the end reached."""
+
+    def test_integrals(self):
+        w = 3.0
+        self.assertAlmostEqual(pile.eta_seconds(10, 70, 70, w, exponent=0), 60 * w, delta=1e-9)
+        # during the feed, cost ∝ N ∝ s: ∫_t^T s/t ds = (T² − t²)/(2t)
+        self.assertAlmostEqual(pile.eta_seconds(10, 70, 70, w, exponent=1, points=2001), w * (70 ** 2 - 10 ** 2) / 20, delta=1e-3)
+        # feed to 70 s then 2 s at the final count
+        expect = w * ((70 ** 2 - 10 ** 2) / 20 + 2 * 7.0)
+        self.assertAlmostEqual(pile.eta_seconds(10, 72, 70, w, exponent=1, points=4001), expect, delta=0.05)
+        # in the relaxation the count no longer grows
+        self.assertAlmostEqual(pile.eta_seconds(71, 72, 70, w, exponent=1.2), w, delta=1e-9)
+        self.assertEqual(pile.eta_seconds(72, 72, 70, w), 0.0)
+        self.assertEqual(pile._duration(2 * 86400 + 3 * 3600 + 4 * 60 + 5), '2d 03:04:05')
+        self.assertEqual(pile._duration(float('inf')), '?')
+
+
 class TestTinyPile(unittest.TestCase):
     """Deposition of 60 grains with the paper's protocol, interrupted and resumed, then the
     analyses and every figure."""

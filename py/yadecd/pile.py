@@ -386,6 +386,22 @@ def snapshot(path, births, p, t=None):
     os.replace(tmp, path)
 
 
+ETA_EXPONENT = 1.2   # wall time per simulated second grows about as N^1.1-1.3 on fed piles (docs/performance.md)
+
+
+def eta_seconds(t, t_end, t_feed_end, wall_per_sim_s, exponent=ETA_EXPONENT, points=200):
+    """Wall time [s] left from simulated time ``t`` to ``t_end`` when a simulated second now costs
+    ``wall_per_sim_s`` and its cost grows as the grain count to the power ``exponent``, the count
+    growing in proportion to the time until ``t_feed_end`` and constant after it (the relaxation).
+    A constant rate (``exponent`` 0) gives ``(t_end - t) * wall_per_sim_s``."""
+    if t >= t_end:
+        return 0.0
+    n_now = max(min(t, t_feed_end), 1e-12)
+    s = np.linspace(t, t_end, points)
+    growth = (np.minimum(s, t_feed_end).clip(min=n_now) / n_now) ** exponent
+    return float(wall_per_sim_s * np.trapz(growth, s))
+
+
 def snapshot_times(p, t_end):
     """Times [s] of a run's snapshots: its epochs, or every snap_every up to t_end (the last at t_end)."""
     if p['epochs']:
@@ -717,6 +733,8 @@ class PileRun:
         wall0, sim0 = time.time(), clock.time()
         self.segment_start = wall0
         last_ck = last_log = time.time()
+        t_log = sim0                     # simulated time at the last progress line
+        t_feed_end = p['n_grains'] * period * p['dt']
         progress = open(os.path.join(self.run_dir, 'progress.csv'), 'a')
         if progress.tell() == 0:
             progress.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
@@ -739,15 +757,17 @@ class PileRun:
             now = time.time()
             if now - last_log > 10 or t >= t_stop - 0.5 * p['dt']:
                 rate = (t - sim0) / max(now - wall0, 1e-9)
-                eta = (t_end - t) / rate if rate > 0 else float('inf')
+                # the cost of a simulated second now (since the last line), grown with the grain count
+                recent = (now - last_log) / (t - t_log) if t > t_log else float('inf')
+                eta = eta_seconds(t, t_end, t_feed_end, recent) if math.isfinite(recent) else float('inf')
                 contacts, sweeps, residual = solver_stats()
                 self.log('t=%7.3f s  grains %6d/%d  contacts %6d  sweeps %4d  residual %.1e  %.3f sim-s/s  ETA %s'
                          % (t, feeder.count, p['n_grains'], contacts, sweeps, residual, rate,
-                            time.strftime('%H:%M:%S', time.gmtime(eta)) if eta < 1e7 else '?'))
+                            _duration(eta)))
                 progress.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % (t, feeder.count, contacts, sweeps, residual,
                                                               self.wall_before + now - wall0))  # the run's wall time
                 progress.flush()
-                last_log = now
+                last_log, t_log = now, t
             if now - last_ck > p['checkpoint_every']:
                 self.checkpoint()
                 last_ck = time.time()
@@ -789,6 +809,14 @@ class _StopSignals:
         for s, h in self.old.items():
             signal.signal(s, h)
         return False
+
+
+def _duration(seconds):
+    """'HH:MM:SS', with days in front when longer ('2d 03:04:05'); '?' when unknown."""
+    if not math.isfinite(seconds) or seconds >= 1e8:
+        return '?'
+    days, rest = divmod(int(round(seconds)), 86400)
+    return ('%dd ' % days if days else '') + time.strftime('%H:%M:%S', time.gmtime(rest))
 
 
 def _float(text):
@@ -848,7 +876,8 @@ def run(run_dir, resume=False, log=print, overwrite=False, **overrides):
     without ``resume`` or ``overwrite`` (FileExistsError), options that differ from the run being
     resumed (ValueError), an unwritable or too-full directory (CheckpointError). Progress lines
     give simulated time, grains, contacts, Gauss–Seidel sweeps and residual of the last step, the
-    wall-clock rate and the ETA. Snapshots go to ``snap_<t>.npz``; checkpoints to ``ckpt/``."""
+    wall-clock rate and the ETA (the current cost of a simulated second, grown with the grain
+    count: :func:`eta_seconds`). Snapshots go to ``snap_<t>.npz``; checkpoints to ``ckpt/``."""
     if resume:
         return PileRun.resume(run_dir, overrides, log).advance()
     r = PileRun.start(run_dir, overrides, log, overwrite=overwrite)
