@@ -121,6 +121,7 @@ def carry(src, dest, snap_every=None, log=print):
     os.replace(tmp, dest)
     shutil.rmtree(old, ignore_errors=True)
     when = '%.3f' % record['time'] if isinstance(record['time'], (int, float)) else '?'
-    log('carried %s -> %s: checkpoint %d at t=%s s, %d snapshots (%d left out), without %s'
-        % (src, dest, seq, when, len(snaps), len(record['snapshots_left_out']), ', '.join(dropped) or 'nothing'))
+    log('carried %s -> %s: checkpoint %d at t=%s s, %d snapshots (%d left out)%s'
+        % (src, dest, seq, when, len(snaps), len(record['snapshots_left_out']),
+           ', without ' + ', '.join(dropped) if dropped else ''))
     return record
