@@ -109,8 +109,8 @@ def carry(src, dest, snap_every=None, log=print):
               'snapshots_left_out': sorted(set(all_snaps) - set(snaps)), 'checkpoint_files_left_out': dropped}
     with open(os.path.join(tmp, RECORD), 'w') as f:
         json.dump(record, f, indent=1)
-    problem = CheckpointStore(tmp).latest()
-    if problem is None or problem[0] != seq:
+    copied = CheckpointStore(tmp).latest()
+    if copied is None or copied[0] != seq:
         shutil.rmtree(tmp, ignore_errors=True)
         raise CheckpointError('carry: the copied checkpoint does not verify in %s' % tmp)
 

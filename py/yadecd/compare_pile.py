@@ -21,6 +21,13 @@ FIELDS = ['case', 'label', 'method', 'young_Pa', 'dt_s', 'steps', 'wall_s', 'wal
           'hydrostatic_dPa', 'p_center_over_hydrostatic', 'floor_load_over_weight', 'overlap_max_over_d',
           'overlap_mean_over_d', 'unconverged_steps']
 
+def _allowance(i, beyond_allowance):
+    """The overlap a CD contact may keep [m] when ``beyond_allowance`` (0 for MD contacts and
+    allowances not yet set), else 0."""
+    a = getattr(i.phys, 'overlapAllowance', 0.0) if beyond_allowance else 0.0
+    return a if np.isfinite(a) else 0.0
+
+
 def overlaps(beyond_allowance=False):
     """Largest and mean overlap of grain–grain contacts over the mean diameter [-].
     ``beyond_allowance``: only what exceeds each CD contact's ``CDPhys.overlapAllowance`` (the
@@ -28,11 +35,7 @@ def overlaps(beyond_allowance=False):
     from yade import O
     from yade.wrapper import Sphere
     d = 2 * np.mean([b.shape.radius for b in O.bodies if isinstance(b.shape, Sphere)])
-
-    def allowance(i):
-        a = getattr(i.phys, 'overlapAllowance', 0.0) if beyond_allowance else 0.0
-        return a if np.isfinite(a) else 0.0
-    pen = [max(0.0, i.geom.penetrationDepth - allowance(i)) for i in O.interactions
+    pen = [max(0.0, i.geom.penetrationDepth - _allowance(i, beyond_allowance)) for i in O.interactions
            if i.isReal and isinstance(O.bodies[i.id1].shape, Sphere) and isinstance(O.bodies[i.id2].shape, Sphere)]
     return (max(pen) / d, np.mean(pen) / d) if pen else (0.0, 0.0)
 
@@ -55,8 +58,7 @@ def loaded_overlaps(beyond_allowance=True):
             continue
         if (i.phys.normalForce + i.phys.shearForce).norm() == 0:
             continue
-        a = getattr(i.phys, 'overlapAllowance', 0.0) if beyond_allowance else 0.0
-        pen.append(max(0.0, -gap(b1, b2) - (a if np.isfinite(a) else 0.0)))
+        pen.append(max(0.0, -gap(b1, b2) - _allowance(i, beyond_allowance)))
     return (max(pen) / d, np.mean(pen) / d, len(pen)) if pen else (0.0, 0.0, 0)
 
 

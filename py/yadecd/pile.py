@@ -141,7 +141,7 @@ def set_engines(p):
         O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
                             relaxation=p.get('relaxation', 1.0), momentum=bool(p.get('momentum', True)),
                             correctionMomentum=bool(p.get('correction_momentum', False)),
-                            parallelMinContacts=int(p.get('parallel_min_contacts', 10000)),
+                            parallelMinContacts=int(p.get('parallel_min_contacts', DEFAULTS['parallel_min_contacts'])),
                             sweepOrder=int(p.get('sweep_order', 1)),
                             warnUnconverged=False)
         O.dt = p['dt']
@@ -288,7 +288,7 @@ def separating_dilation(centres, radii, margin=1e-9):
     if (dist <= 0).any():
         raise ValueError('separating_dilation: two spheres share a centre; no dilation separates them')
     worst = ((radii[pairs[:, 0]] + radii[pairs[:, 1]]) / dist).max()
-    return max(1.0, float(worst)) * (1 + margin) if worst > 1 else 1.0
+    return float(worst) * (1 + margin) if worst > 1 else 1.0
 
 
 # ----------------------------------------------------------------------------- creation rule
@@ -637,7 +637,7 @@ class PileRun:
             O.load(scene)
             # attributes not saved with the scene come from the run's parameters
             O.engines[-1].correctionMomentum = bool(self.p.get('correction_momentum', False))
-            O.engines[-1].parallelMinContacts = int(self.p.get('parallel_min_contacts', 10000))
+            O.engines[-1].parallelMinContacts = int(self.p['parallel_min_contacts'])
             self.clock.t0, self.clock.i0 = meta['time_offset'], meta['iter_offset']
             self.resumed_from = 'checkpoint %d, YADE archive: bit-identical continuation' % seq
         else:

@@ -44,8 +44,9 @@ ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run
 ap.add_argument('--time', type=float, default=0.01, help='simulated seconds timed per case')
 ap.add_argument('--warmup', type=float, default=0.002, help='simulated seconds run untimed first')
 ap.add_argument('--md-scale-time', action='store_true', help='run each MD case after the first for --time and --warmup times '
-                'sqrt(E_first / E): the same number of steps and of elastic oscillation periods (so the load is taken up alike), '
-                'where a stiff modulus would need many more steps per simulated second')
+                'sqrt(E_first / E): the same number of steps and of elastic oscillation periods, for the cost per simulated '
+                'second of a stiff modulus; gravity is not scaled, so such a case does not reach load equilibrium and its '
+                'overlaps are not a match')
 ap.add_argument('--cd-dt', default='2e-4', help='CD time steps [s], comma-separated; the first is the one MD is matched to')
 ap.add_argument('--young', default='1e9,auto', help="MD Young's moduli [Pa], comma-separated; 'auto' matches CD's mean overlap")
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'cd_md_fullsize.csv'))
@@ -57,6 +58,12 @@ if args.time <= 0 or args.warmup < 0:
 moduli = [m.strip() for m in args.young.split(',') if m.strip()]
 if moduli and moduli[0] == 'auto':
     ap.error("--young: 'auto' needs a numeric modulus before it")
+try:
+    cd_steps = [float(x) for x in args.cd_dt.split(',') if x.strip()]
+except ValueError:
+    ap.error('--cd-dt: comma-separated time steps in seconds, got %r' % args.cd_dt)
+if not cd_steps or min(cd_steps) <= 0:
+    ap.error('--cd-dt needs at least one positive time step')
 
 
 def run_case(method, young=None, dt=None, scale=1.0):
@@ -91,14 +98,7 @@ def run_case(method, young=None, dt=None, scale=1.0):
     return row, wall, lmean
 
 
-
 rows = []
-try:
-    cd_steps = [float(x) for x in args.cd_dt.split(',') if x.strip()]
-except ValueError:
-    ap.error('--cd-dt: comma-separated time steps in seconds, got %r' % args.cd_dt)
-if not cd_steps or min(cd_steps) <= 0:
-    ap.error('--cd-dt needs at least one positive time step')
 row, cd_wall, cd_overlap = run_case('CD', dt=cd_steps[0])
 rows.append(row)
 for dt in cd_steps[1:]:

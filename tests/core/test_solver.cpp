@@ -291,14 +291,14 @@ void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 			sweeps.push_back(s.solve(p).iterations);
 			corr.push_back(s.correct(p).iterations);
 			P.push_back(globalImpulses(s));
-			std::vector<Vector3r> vb, pb_;
+			std::vector<Vector3r> vb, pvb;
 			for (size_t b = 0; b < s.bodies.size(); ++b) {
 				vb.push_back(s.bodies[b].v);
 				vb.push_back(s.bodies[b].w);
-				pb_.push_back(s.records[b].pv);
+				pvb.push_back(s.records[b].pv);
 			}
 			v.push_back(vb);
-			pv.push_back(pb_);
+			pv.push_back(pvb);
 		}
 		check(sweeps[0] == sweeps[1] && corr[0] == corr[1] && P[0] == P[1] && v[0] == v[1] && pv[0] == pv[1],
 		      name + " [schedule " + std::to_string(schedule) + "]: threaded and serial sweeps give the same step, bit for bit (" +
