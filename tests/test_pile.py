@@ -84,6 +84,42 @@ class TestEta(unittest.TestCase):
         self.assertEqual(pile._duration(float('inf')), '?')
 
 
+class TestSnapshotTimes(unittest.TestCase):
+    """The snapshot times: the regular grid, the end of the feed added where the grid misses it,
+    never twice, not without relaxation, and explicit epochs as given."""
+
+    def times(self, **kw):
+        p = dict(pile.DEFAULTS, **kw)
+        return pile.snapshot_times(p, pile.feed_end_time(p) + p['relax'])
+
+    def test_grid_and_feed_end(self):
+        # 5000 grains at h = 1e-3 (period 5 steps): feed ends at 25 s, snapshots every 2 s to 26 s
+        t = self.times(n_grains=5000, dt=1e-3, relax=1.0, snap_every=2.0)
+        self.assertEqual(len(t), 14)
+        self.assertAlmostEqual(t[11], 24.0)
+        self.assertAlmostEqual(t[12], 25.0)
+        self.assertAlmostEqual(t[13], 26.0)
+        self.assertEqual(t, sorted(t))
+        # 14 000 grains, 2 s of relaxation: 70 s is on the grid, not repeated
+        t = self.times(n_grains=14000, dt=1e-3, relax=2.0, snap_every=2.0)
+        self.assertEqual(len(t), 36)
+        self.assertEqual(sum(abs(x - 70.0) < 1e-9 for x in t), 1)
+        # no relaxation: the grid ends at the feed end (12 intervals of 25/12 s), not repeated
+        t = self.times(n_grains=5000, dt=1e-3, relax=0.0, snap_every=2.0)
+        self.assertAlmostEqual(t[-1], 25.0)
+        self.assertAlmostEqual(t[0], 25.0 / 12)
+        self.assertEqual(len(t), 12)
+        # h = 2e-4 (period 25 steps): 1000 grains end at 5 s
+        t = self.times(n_grains=1000, dt=2e-4, relax=1.0, snap_every=4.0)
+        self.assertEqual(len(t), 3)
+        self.assertAlmostEqual(t[0], 3.0)
+        self.assertAlmostEqual(t[1], 5.0)
+        self.assertAlmostEqual(t[2], 6.0)
+
+    def test_epochs_as_given(self):
+        self.assertEqual(self.times(n_grains=5000, dt=1e-3, relax=1.0, epochs='5,10,11'), [5.0, 10.0, 11.0])
+
+
 class TestTinyPile(unittest.TestCase):
     """Deposition of 60 grains with the paper's protocol, interrupted and resumed, then the
     analyses and every figure."""

@@ -337,3 +337,24 @@ class TestStoredRecords(unittest.TestCase):
             with self.assertRaises(ValueError) as cm:
                 pea.stored_records([d], set())
             self.assertIn('n10_s3_feed.json', str(cm.exception))
+
+
+class TestSizeLabels(unittest.TestCase):
+    def test_protocol_named_where_not_the_papers(self):
+        """A size run at the paper's h (or by records older than the time-step field) is named by
+        its grain count alone; a size run at another h carries it, as does a size that mixes two,
+        and the table's column heads use the labels (one seed: 'seed', not 'seeds')."""
+        from yadecd import pile_ensemble_analysis as pea
+        recs = [TestEnsembleStatistics.record(1000, 1, 'relaxed', 26.0, 1.0, 1.0),
+                dict(TestEnsembleStatistics.record(2000, 1, 'relaxed', 27.0, 1.0, 1.0), dt_s=2e-4),
+                dict(TestEnsembleStatistics.record(5000, 1, 'relaxed', 27.0, 1.0, 1.2), dt_s=1e-3),
+                dict(TestEnsembleStatistics.record(300, 1, 'relaxed', 27.0, 1.0, 1.2), dt_s=1e-3),
+                TestEnsembleStatistics.record(300, 2, 'relaxed', 27.0, 1.0, 1.2)]
+        labels = pea.size_labels(recs)
+        self.assertEqual(labels, {300: '300 (h = 0.0002, 0.001 s)', 1000: '1000', 2000: '2000',
+                                  5000: '5000 (h = 0.001 s)'})
+        stats, changes = pea.aggregate(recs)
+        head = pea.table_markdown(stats, changes, labels).splitlines()[0]
+        self.assertIn('| 5000 (h = 0.001 s) grains, relaxed (1 seed) |', head)
+        self.assertIn('| 1000 grains, relaxed (1 seed) |', head)
+        self.assertIn('300 (h = 0.0002, 0.001 s) grains, relaxed (2 seeds)', head)

@@ -32,6 +32,7 @@ from yade import O, utils, Vector3
 from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
 from . import engines, runstate
+from .ensemble import feed_time
 from .checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .scenes import material
 
@@ -402,12 +403,23 @@ def eta_seconds(t, t_end, t_feed_end, wall_per_sim_s, exponent=ETA_EXPONENT, poi
     return float(wall_per_sim_s * np.trapz(growth, s))
 
 
+def feed_end_time(p):
+    """Simulated time [s] at which the run ``p`` creates its last grain (:func:`ensemble.feed_time`)."""
+    return feed_time(p['n_grains'], p['rate'], p['dt'])
+
+
 def snapshot_times(p, t_end):
-    """Times [s] of a run's snapshots: its epochs, or every snap_every up to t_end (the last at t_end)."""
+    """Times [s] of a run's snapshots: its epochs, or every snap_every up to t_end (the last at t_end)
+    and, when the run relaxes after the feed, the end of the feed too (the analyses' "end of feed"
+    epoch, which the regular times need not hit: 25 s for 5000 grains, snap_every 2 s)."""
     if p['epochs']:
         return _epoch_list(p['epochs'])
     k = max(1, int(round(t_end / p['snap_every'])))
-    return [t_end * (i + 1) / k for i in range(k)]
+    times = [t_end * (i + 1) / k for i in range(k)]
+    t_feed = feed_end_time(p)
+    if t_feed < t_end - 0.5 * p['dt'] and min(abs(t - t_feed) for t in times) > 0.5 * p['dt']:
+        times = sorted(times + [t_feed])
+    return times
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -480,8 +492,7 @@ def disk_need(p):
     floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
     d_mean = 0.5 * (p['d_min'] + p['d_max'])
     bodies = p['n_grains'] + 0.55 * (floor_radius / (0.5 * d_mean)) ** 2
-    period = max(1, int(round(1 / (p['rate'] * p['dt']))))
-    t_end = p['n_grains'] * period * p['dt'] + p['relax']
+    t_end = feed_end_time(p) + p['relax']
     n_snaps = len(snapshot_times(p, t_end))
     return int(bodies * (3 * 1000 + n_snaps * 400) + 1e6)
 
@@ -727,14 +738,14 @@ class PileRun:
     def _advance(self, t_stop, stop):
         p, clock, feeder = self.p, self.clock, self.feeder
         period = max(1, int(round(1 / (p['rate'] * p['dt']))))  # steps between creations
-        t_end = p['n_grains'] * period * p['dt'] + p['relax']
+        t_feed_end = feed_end_time(p)
+        t_end = t_feed_end + p['relax']
         t_stop = min(t_end, t_stop or p['stop_time'] or t_end)
         snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in self.done_snaps]
         wall0, sim0 = time.time(), clock.time()
         self.segment_start = wall0
         last_ck = last_log = time.time()
         t_log = sim0                     # simulated time at the last progress line
-        t_feed_end = p['n_grains'] * period * p['dt']
         progress = open(os.path.join(self.run_dir, 'progress.csv'), 'a')
         if progress.tell() == 0:
             progress.write('time_s,grains,contacts,sweeps,residual,wall_s\n')

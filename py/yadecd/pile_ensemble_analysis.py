@@ -61,7 +61,7 @@ def run_record(snap_path, params):
     hydro = gp['hydrostatic_Pa']
     free = ~snap['fixed']
     rec = {'snapshot': os.path.basename(snap_path), 'time_s': snap['time'], 'n_grains': int(params.get('n_grains', 0)),
-           'seed': params.get('seed'), 'n_contacts': len(pa._grain_contacts(snap)['i1']),
+           'seed': params.get('seed'), 'dt_s': float(params.get('dt', ens.DT_DEFAULT)), 'n_contacts': len(pa._grain_contacts(snap)['i1']),
            'slope_deg': prof['slope_deg'], 'slope_err_deg': prof['slope_err_deg'], 'slope_note': prof['slope_note'],
            'chord_angle_deg': prof['chord_angle_deg'], 'slope_ls_window_deg': prof['slope_ls_window_deg'],
            'H_m': prof['H'], 'd_m': prof['d'], 'base_radius_m': prof['profile_radius'],
@@ -138,6 +138,21 @@ def collect(root, out_dir, log=print):
     return records, failed, unfinished
 
 
+def _dt(record):
+    """The record's time step [s] (records written before it was kept are the paper's 2e-4 s)."""
+    return record.get('dt_s', ens.DT_DEFAULT)
+
+
+def size_labels(records):
+    """{n_grains: label}: the grain count, with the time step where a size's runs did not use the
+    paper's h (the faster protocol of docs/pile.md), so that no table or figure mixes them silently."""
+    out = {}
+    for n in sorted({r['n_grains'] for r in records}):
+        dts = sorted({_dt(r) for r in records if r['n_grains'] == n})
+        out[n] = str(n) if dts == [ens.DT_DEFAULT] else '%d (h = %s s)' % (n, ', '.join('%g' % d for d in dts))
+    return out
+
+
 def _group(records):
     """{(n_grains, epoch): [records sorted by seed]}."""
     groups = {}
@@ -210,11 +225,14 @@ def _q(x, digits=3):
     return 'n/a' if x is None or not np.isfinite(x) else ('%.' + str(digits) + 'f') % x
 
 
-def table_markdown(stats, changes):
-    """The ensemble table: one column per (size, epoch), mean ± spread over seeds [95 % interval]."""
+def table_markdown(stats, changes, labels=None):
+    """The ensemble table: one column per (size, epoch), mean ± spread over seeds [95 % interval];
+    ``labels`` ({n_grains: text}, :func:`size_labels`) names the sizes."""
     cols = sorted(stats, key=lambda k: (int(k.split('_')[0]), k.split('_')[1] != 'feed'))
-    lines = ['| quantity | ' + ' | '.join('%s grains, %s (%d seeds)' % (c.split('_')[0], c.split('_')[1],
-                                                                     stats[c]['n_runs']) for c in cols) + ' |',
+    name = lambda c: (labels or {}).get(int(c.split('_')[0]), c.split('_')[0])
+    lines = ['| quantity | ' + ' | '.join('%s grains, %s (%d seed%s)' % (name(c), c.split('_')[1], stats[c]['n_runs'],
+                                                                       '' if stats[c]['n_runs'] == 1 else 's')
+                                          for c in cols) + ' |',
              '| --- |' + ' --- |' * len(cols)]
     for key, (label, factor, unit) in SCALARS.items():
         digits = 0 if key in ('n_contacts', 'recip_n_pairs', 'law_n_cuts') else (3 if unit == '' else 2)
@@ -228,7 +246,7 @@ def table_markdown(stats, changes):
         law, rec = stats[c]['fossil_law_pooled'], stats[c]['reciprocity_pooled']
         lines.append('')
         lines.append('%s grains, %s: reciprocity pooled over pairs: median %s (quartiles %s-%s, %d pairs), null pairing %s; '
-                     % (c.split('_')[0], c.split('_')[1], _q(rec['true']['median']), _q(rec['true']['q25']),
+                     % (name(c), c.split('_')[1], _q(rec['true']['median']), _q(rec['true']['q25']),
                         _q(rec['true']['q75']), rec['true']['n'], _q(rec['null']['median'])) +
                      'fossil-layer law, angle to the local layer / to a random layer (median over cuts), random - layer '
                      '(mean over piles, 95 %% interval): centre r < R/2 %s° / %s°, %s; flank %s° / %s°, %s'
@@ -243,7 +261,7 @@ def table_markdown(stats, changes):
         lines.append('| grains | ' + ' | '.join(PAIRED) + ' |')
         lines.append('| --- |' + ' --- |' * len(PAIRED))
         for n, ch in changes.items():
-            lines.append('| %s (%d seeds) | ' % (n, len(ch['seeds'])) + ' | '.join(
+            lines.append('| %s (%d seeds) | ' % ((labels or {}).get(int(n), n), len(ch['seeds'])) + ' | '.join(
                 _fmt(ch[k], CM if k in ('H_m', 'base_radius_m') else 1.0, 3 if k in ('packing_fraction', 'dip_D') else 2)
                 for k in PAIRED) + ' |')
     return '\n'.join(lines) + '\n'
@@ -272,7 +290,8 @@ def _size_axis(ax, records):
     sizes = sorted({r['n_grains'] for r in records})
     ax.set_xscale('log')
     ax.set_xticks(sizes)
-    ax.set_xticklabels([str(n) for n in sizes])
+    labels = size_labels(records)
+    ax.set_xticklabels([labels[n].replace(' (', '\n(') for n in sizes])
     ax.minorticks_off()
     if sizes:
         ax.set_xlim(sizes[0] / 1.4, sizes[-1] * 1.4)
@@ -446,7 +465,7 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
                                'units': 'SI unless the key says otherwise'}}
     with open(os.path.join(out_dir, 'ensemble_summary.json'), 'w') as f:
         json.dump(pf._clean(summary), f, indent=1, sort_keys=True)
-    table = table_markdown(stats, changes)
+    table = table_markdown(stats, changes, size_labels(records))
     if failed:
         table += '\nFailed runs (not in the statistics): ' + '; '.join('%s: %s' % (k, ' '.join(v)) for k, v in failed.items()) + '\n'
     if unfinished:
