@@ -4,8 +4,8 @@
     python3 scripts/pile_figures.py RUN_DIR [--epoch T] [--fossil T1 T2]... [--out DIR]
 
 RUN_DIR holds snap_<time>.npz files (and run.json); a single snapshot file is accepted too.
-Writes fig0..fig7 PNGs and summary.json into DIR (default RUN_DIR/figures) and prints the main
-numbers. Needs numpy and matplotlib only: works with Debian's /usr/bin/python3 and inside YADE
+Writes fig0..fig7 PNGs, summary.json and paper_table.md (the pile's numbers beside the paper's, in
+its units) into DIR (default RUN_DIR/figures) and prints the main numbers. Needs numpy and matplotlib only: works with Debian's /usr/bin/python3 and inside YADE
 (``yade -n -x scripts/pile_figures.py RUN_DIR ...``); it never imports yade (the yadecd package
 imports without YADE; this script uses the repository's copy, py/yadecd).
 """
@@ -68,7 +68,7 @@ def main(argv=None):
           % (rc['n_pairs'], fmt(rc['rel_median'], '%.3f'), fmt(rc['rel_null_median'], '%.3f')))
     for name, why in s.get('figures_skipped', {}).items():
         print('%s: %s' % (name, why))
-    print('written: %s' % os.path.join(out, 'summary.json'))
+    print('written: %s, %s' % (os.path.join(out, 'summary.json'), os.path.join(out, 'paper_table.md')))
     return 0
 
 

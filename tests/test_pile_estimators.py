@@ -358,3 +358,43 @@ class TestSizeLabels(unittest.TestCase):
         self.assertIn('| 5000 (h = 0.001 s) grains, relaxed (1 seed) |', head)
         self.assertIn('| 1000 grains, relaxed (1 seed) |', head)
         self.assertIn('300 (h = 0.0002, 0.001 s) grains, relaxed (2 seeds)', head)
+
+
+class TestPaperTable(unittest.TestCase):
+    def summary(self, **kw):
+        s = {'n_pile_grains': 5000, 'time_s': 26.0, 'n_contacts': 14321, 'slope_deg': 27.25, 'slope_err_deg': 0.42,
+             'slope_note': None, 'H_m': 0.0456, 'rho_bulk_kg_m3': 540.0, 'hydrostatic_Pa': 241.5,
+             'p_center_over_hydrostatic': 0.8, 'p_center_dPa': 1932.0, 'p_center_err_dPa': 151.0,
+             'dip': {'D': 0.12, 'ci95': [-0.05, 0.29], 'confidence_positive': 0.91},
+             'reciprocity': {'rel_median': 0.051, 'n_pairs': 40, 'rel_null_median': 0.16},
+             'fossil_law': {'median_layer_deg': 5.04, 'median_random_deg': 5.71, 'n_cuts': 77},
+             'speed': {'vmax_m_s': 0.0123}}
+        s.update(kw)
+        return s
+
+    def test_units_and_rows(self):
+        """Every number in the paper's units (cm, g/cm³, dPa, cm/s) beside the paper's own; the
+        paper's hydrostatic 3320 dPa is ρ_bulk g H of its 0.615 g/cm³ and 5.5 cm (to 1 dPa)."""
+        from yadecd import pile_figures as pf
+        self.assertAlmostEqual(pf.PAPER['rho_bulk_kg_m3'] * 9.81 * pf.PAPER['H_m'] * pf.DPA, 3320, delta=5)
+        rows = {line.split(' | ')[0].lstrip('| '): line.split(' | ')[1:] for line in pf.paper_table(self.summary()).splitlines()[2:]}
+        self.assertEqual(rows['free-surface slope'][:2], ['27.2° ± 0.4°', '26°'])
+        self.assertEqual(rows['apex height H'][:2], ['4.56 cm', '5.5 cm'])
+        self.assertEqual(rows['bulk density (profile volume)'][:2], ['0.540 g/cm³', '0.615 g/cm³'])
+        self.assertEqual(rows['hydrostatic pressure ρ_bulk g H'][:2], ['2415 dPa', '3320 dPa'])
+        self.assertEqual(rows['central ring pressure / hydrostatic'][0], '0.80 (1932 ± 151 dPa)')
+        self.assertEqual(rows['central dip D [95 %], confidence of a dip'][0], '0.12 [-0.05, 0.29], 91 %')
+        self.assertEqual(rows['reciprocity: median |n·T′ − n′·T|/√(|T||T′|), null'][0], '0.051 (40 pairs), null 0.160')
+        self.assertEqual(rows['fastest grain'][0], '1.2 cm/s')
+        self.assertEqual(rows['contacts between grains'][:2], ['14321', 'about 33000'])
+
+    def test_missing_numbers(self):
+        """A pile without a straight flank, pairs or a dip interval says so instead of failing."""
+        from yadecd import pile_figures as pf
+        text = pf.paper_table(self.summary(slope_deg=None, slope_note='pile too small', reciprocity={},
+                                           dip={'D': float('nan'), 'ci95': [float('nan')] * 2, 'confidence_positive': None},
+                                           p_center_over_hydrostatic=None))
+        self.assertIn('| no straight flank (pile too small) |', text)
+        self.assertIn('| – (0 pairs), null – |', text)
+        self.assertIn('| – [–, –], – |', text)
+        self.assertIn('| – (1932 ± 151 dPa) |', text)

@@ -552,6 +552,8 @@ def analyse(source, out_dir, epoch=None, fossil=None, half_thickness=0.01, ring_
     summary = _clean(summary)
     with open(out('summary.json'), 'w') as f:
         json.dump(summary, f, indent=1, sort_keys=True)
+    with open(out('paper_table.md'), 'w') as f:
+        f.write(paper_table(summary))
     return summary
 
 
@@ -641,6 +643,57 @@ def _summary(snap, m, levels, fossils, panel_times, figures):
                            'against a random layer; advantage = mean(random - layer)',
              'central_pressure': 'ring 0, the disc r < ring_width'}}
     return s
+
+
+# The paper's numbers for its 14 000-grain pile (Moreau, section IV; the project's digest), in
+# SI. Only those the paper states as numbers; its qualitative findings are quoted in the table.
+PAPER = {'slope_deg': 26.0, 'H_m': 0.055, 'rho_bulk_kg_m3': 615.0, 'hydrostatic_Pa': 332.0,
+         'n_contacts': 33000, 'vmax_m_s': 0.236}
+
+
+def _fmt_or_dash(value, fmt):
+    return '–' if value is None or (isinstance(value, float) and not math.isfinite(value)) else fmt % value
+
+
+def paper_table(s):
+    """Markdown table of a pile's numbers (a ``summary.json`` dict) beside the paper's, in the
+    paper's units (cm, g/cm³, dPa, cm/s). Rows the paper states only in words say so; the dip
+    row gives D = 1 − p(r < 2d)/p(2d ≤ r < 4d) with its 95 % interval and the central ring's
+    pressure against the hydrostatic one, the paper's own comparison."""
+    P = PAPER
+    dip, rec, law = s.get('dip') or {}, s.get('reciprocity') or {}, s.get('fossil_law') or {}
+    ci = dip.get('ci95') or [None, None]
+    slope = (_fmt_or_dash(s.get('slope_deg'), '%.1f°') +
+             (' ± %.1f°' % s['slope_err_deg'] if s.get('slope_deg') is not None and s.get('slope_err_deg') is not None else '')
+             if s.get('slope_deg') is not None else 'no straight flank (%s)' % (s.get('slope_note') or 'too small'))
+    rows = [
+        ('grains (pile, without the paving)', '%d' % s['n_pile_grains'], '14 000', ''),
+        ('time', '%.2f s' % s['time_s'], 'about 72 s (feed 70 s)', 'the snapshot analysed'),
+        ('contacts between grains', '%d' % s['n_contacts'], 'about %d' % P['n_contacts'], 'paper: at the end'),
+        ('free-surface slope', slope, '%.0f°' % P['slope_deg'], 'robust flank fit; error: spread over sectors'),
+        ('apex height H', '%.2f cm' % (s['H_m'] * CM), '%.1f cm' % (P['H_m'] * CM), ''),
+        ('bulk density (profile volume)', '%.3f g/cm³' % (s['rho_bulk_kg_m3'] / 1000.0),
+         '%.3f g/cm³' % (P['rho_bulk_kg_m3'] / 1000.0), 'ours: a low estimate (the profile follows grain tops)'),
+        ('hydrostatic pressure ρ_bulk g H', '%.0f dPa' % (s['hydrostatic_Pa'] * DPA), '%.0f dPa' % (P['hydrostatic_Pa'] * DPA), ''),
+        ('central ring pressure / hydrostatic', _fmt_or_dash(s.get('p_center_over_hydrostatic'), '%.2f') +
+         ' (%s ± %s dPa)' % (_fmt_or_dash(s.get('p_center_dPa'), '%.0f'), _fmt_or_dash(s.get('p_center_err_dPa'), '%.0f')),
+         '"well below" 1: a local minimum at the centre', 'error: spread over 8 sectors / √8'),
+        ('central dip D [95 %], confidence of a dip', '%s [%s, %s], %s' % (
+            _fmt_or_dash(dip.get('D'), '%.2f'), _fmt_or_dash(ci[0], '%.2f'), _fmt_or_dash(ci[1], '%.2f'),
+            _fmt_or_dash(None if dip.get('confidence_positive') is None else 100 * dip['confidence_positive'], '%.0f %%')),
+         'a dip (D > 0), not quantified', 'D > 0 is a dip'),
+        ('reciprocity: median |n·T′ − n′·T|/√(|T||T′|), null', '%s (%d pairs), null %s' % (
+            _fmt_or_dash(rec.get('rel_median'), '%.3f'), rec.get('n_pairs') or 0, _fmt_or_dash(rec.get('rel_null_median'), '%.3f')),
+         'holds despite sampling noise (Fig. 3)', 'null: T′ taken at another place'),
+        ('fossil-layer law: median angle to the local / a random layer', '%s / %s (%d cuts)' % (
+            _fmt_or_dash(law.get('median_layer_deg'), '%.1f°'), _fmt_or_dash(law.get('median_random_deg'), '%.1f°'),
+            law.get('n_cuts') or 0), 'T along the nearby fossil layer (Fig. 4)', ''),
+        ('fastest grain', '%.1f cm/s' % ((s.get('speed') or {}).get('vmax_m_s', float('nan')) * CM),
+         '%.1f cm/s (Fig. 1, during the feed)' % (P['vmax_m_s'] * CM), ''),
+    ]
+    lines = ['| quantity | this pile | paper (14 000 grains) | note |', '| --- | --- | --- | --- |']
+    lines += ['| %s |' % ' | '.join(r) for r in rows]
+    return '\n'.join(lines) + '\n'
 
 
 def _cyl_summary(cyl, prof):
