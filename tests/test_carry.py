@@ -55,6 +55,8 @@ class TestCarry(unittest.TestCase):
             json.dump({'n_grains': 10}, f)
         with open(os.path.join(self.src, 'progress.csv'), 'w') as f:
             f.write('t,grains\n0.5,3\n')
+        with open(os.path.join(self.src, 'segments.csv'), 'w') as f:
+            f.write('started_unix,t_start_s\n1.0,0.0\n')
         for t in (1, 2, 3):
             with open(os.path.join(self.src, snap(t)), 'wb') as f:
                 f.write(b'snapshot %d' % t)
@@ -77,7 +79,7 @@ class TestCarry(unittest.TestCase):
     def test_copy(self):
         record = carry(self.src, self.dest, snap_every=2, **QUIET)
         self.assertEqual(sorted(os.listdir(self.dest)),
-                         sorted(['run.json', 'progress.csv', snap(2), snap(3), 'ckpt', 'CARRIED.json']))
+                         sorted(['run.json', 'progress.csv', 'segments.csv', snap(2), snap(3), 'ckpt', 'CARRIED.json']))
         self.assertEqual((record['checkpoint'], record['time'], record['wall_s']), (2, 2.0, 20.0))
         self.assertEqual(record['snapshots_left_out'], [snap(1)])
         seq, unit, info = CheckpointStore(self.dest).latest()

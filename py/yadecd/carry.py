@@ -4,7 +4,8 @@ A long pile (the 14 000-grain one takes many hours) outlives the machine it star
 machine is reset between sessions. :func:`carry` copies what a resume needs and what the
 analyses read, and nothing machine-specific:
 
-* ``run.json`` (the parameters) and ``progress.csv`` (with the run's wall time so far);
+* ``run.json`` (the parameters), ``progress.csv`` (with the run's wall time so far) and
+  ``segments.csv`` (where and when each segment ran, :mod:`yadecd.runcost`);
 * the snapshots ``snap_<t>.npz`` at multiples of ``snap_every`` seconds (all when ``None``),
   always with the newest one;
 * the newest *valid* checkpoint unit, reduced to its ``state.npz`` (the layout-independent
@@ -26,7 +27,7 @@ import time
 
 from yadecd.checkpoint import POINTER, CheckpointError, CheckpointStore, sha256
 
-RUN_FILES = ('run.json', 'progress.csv')
+RUN_FILES = ('run.json', 'progress.csv', 'segments.csv')
 SNAP_PREFIX, SNAP_SUFFIX = 'snap_', '.npz'
 RECORD = 'CARRIED.json'
 

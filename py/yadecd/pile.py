@@ -31,7 +31,7 @@ import numpy as np
 from yade import O, utils, Vector3
 from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
-from . import engines, runstate
+from . import engines, runcost, runstate
 from .ensemble import feed_time
 from .checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .scenes import material
@@ -534,7 +534,7 @@ class Clock:
         return self.i0 + O.iter
 
 
-RUN_FILES = ('run.json', 'progress.csv', 'checkpoint.json', 'checkpoint.yade.gz')
+RUN_FILES = ('run.json', 'progress.csv', 'segments.csv', 'checkpoint.json', 'checkpoint.yade.gz')
 
 
 class PileRun:
@@ -744,6 +744,7 @@ class PileRun:
         snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in self.done_snaps]
         wall0, sim0 = time.time(), clock.time()
         self.segment_start = wall0
+        runcost.append_segment(self.run_dir, sim0, self.wall_before, O.numThreads)
         last_ck = last_log = time.time()
         t_log = sim0                     # simulated time at the last progress line
         progress = open(os.path.join(self.run_dir, 'progress.csv'), 'a')

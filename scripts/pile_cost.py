@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""What a pile run's wall time went into: cost per simulated second and all-in cost per
+contact-sweep, per window of simulated time and per segment (host), from the run's own
+progress.csv and segments.csv (module yadecd.runcost).
+
+    python3 scripts/pile_cost.py RUN_DIR [--window 2] [--out DIR]
+
+Prints a table and writes cost.csv and cost.png into DIR (default RUN_DIR). A run carried between
+machines ran on hosts of different speed: the ns per contact-sweep column tells them apart, and
+the total at the best host's cost is printed beside the measured one. Needs numpy and matplotlib
+only (Debian's /usr/bin/python3 or YADE's).
+"""
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py'))
+
+
+def figure(rows, segments, path, title):
+    from yadecd import pile_figures as pf
+    import numpy as np
+    fig = pf._figure(9, 6.5)
+    ax, bx = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+    for seg in sorted({r['segment'] for r in rows}):
+        sel = [r for r in rows if r['segment'] == seg]
+        label = ('before segments were recorded' if seg < 0 else
+                 'segment %d: %s, %s thread(s)' % (seg, segments[seg]['cpu'], segments[seg]['threads']))
+        g = np.array([r['grains'] for r in sel])
+        ax.plot(g, [r['wall_per_sim_s'] for r in sel], 'o-', ms=3, label=label)
+        bx.plot(g, [r['ns_per_contact_sweep'] for r in sel], 'o-', ms=3, label=label)
+    ax.set_yscale('log')
+    ax.set_ylabel('wall time per simulated second [s]')
+    ax.set_title(title, fontsize=9)
+    bx.set_ylabel('all-in cost per contact-sweep [ns]')
+    bx.set_xlabel('grains at the end of the window')
+    bx.set_ylim(bottom=0)
+    for a in (ax, bx):
+        a.grid(alpha=0.3)
+        a.legend(fontsize=6)
+    bx.text(0.01, 0.97, 'wall time / Σ steps × contacts × sweeps (sweeps sampled once per progress line)',
+            transform=bx.transAxes, fontsize=6, va='top')
+    return pf._save(fig, path)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    p.add_argument('run')
+    p.add_argument('--window', type=float, default=2.0, help='window of simulated time [s]')
+    p.add_argument('--out', default=None, help='output directory (default RUN_DIR)')
+    args = p.parse_args(argv)
+    if not args.window > 0:
+        p.error('--window must be > 0')
+    progress = os.path.join(args.run, 'progress.csv')
+    if not os.path.exists(progress):
+        p.error('%s holds no progress.csv' % args.run)
+    from yadecd import benchio, runcost
+    from yadecd import pile_analysis as pa
+    params = pa.run_parameters(args.run)
+    dt = params.get('dt')
+    if not dt:
+        p.error('%s holds no run.json with the time step' % args.run)
+    segments = runcost.read_segments(os.path.join(args.run, 'segments.csv'))
+    rows = runcost.cost_windows(runcost.read_progress(progress), dt, args.window, segments)
+    if not rows:
+        p.error('%s: too few progress lines for a window of %g s' % (args.run, args.window))
+    print('%9s %9s %4s %7s %8s %10s %10s' % ('t from', 't to', 'seg', 'grains', 'contacts', 'wall/sim-s', 'ns/c-sweep'))
+    for r in rows:
+        print('%9.3f %9.3f %4d %7d %8d %10.1f %10.1f' % (r['t_from_s'], r['t_to_s'], r['segment'], r['grains'],
+                                                         r['contacts'], r['wall_per_sim_s'], r['ns_per_contact_sweep']))
+    wall = sum(r['wall_s'] for r in rows)
+    best = min(r['ns_per_contact_sweep'] for r in rows)
+    at_best = sum(r['wall_s'] * best / r['ns_per_contact_sweep'] for r in rows)
+    print('wall time in these windows %.0f s (%.2f h); at the cheapest window\'s cost per contact-sweep (%.0f ns) '
+          '%.0f s (%.2f h)' % (wall, wall / 3600, best, at_best, at_best / 3600))
+    for k, s in enumerate(segments):
+        print('segment %d: from t = %.3f s, %s thread(s), %s, %s' % (k, s['t_start_s'], s['threads'], s['host'], s['cpu']))
+    out = args.out or args.run
+    benchio.write_csv(os.path.join(out, 'cost.csv'), rows)
+    path = figure(rows, segments, os.path.join(out, 'cost.png'),
+                  '%s: %d grains, h = %g s' % (os.path.basename(os.path.abspath(args.run)), params.get('n_grains', 0), dt))
+    print('wrote %s' % path)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
