@@ -9,6 +9,7 @@ from tests/).
 """
 import json
 import math
+import re
 import os
 import tempfile
 import unittest
@@ -377,7 +378,11 @@ class TestPaperTable(unittest.TestCase):
         paper's hydrostatic 3320 dPa is ρ_bulk g H of its 0.615 g/cm³ and 5.5 cm (to 1 dPa)."""
         from yadecd import pile_figures as pf
         self.assertAlmostEqual(pf.PAPER['rho_bulk_kg_m3'] * 9.81 * pf.PAPER['H_m'] * pf.DPA, 3320, delta=5)
-        rows = {line.split(' | ')[0].lstrip('| '): line.split(' | ')[1:] for line in pf.paper_table(self.summary()).splitlines()[2:]}
+        lines = pf.paper_table(self.summary()).splitlines()
+        # a markdown row: four cells between unescaped bars ('|' inside a cell is written '\|')
+        cells = [[c.strip().replace('\\|', '|') for c in re.split(r'(?<!\\)\|', line)[1:-1]] for line in lines[2:]]
+        self.assertTrue(all(len(c) == 4 for c in cells))
+        rows = {c[0]: c[1:] for c in cells}
         self.assertEqual(rows['free-surface slope'][:2], ['27.2° ± 0.4°', '26°'])
         self.assertEqual(rows['apex height H'][:2], ['4.56 cm', '5.5 cm'])
         self.assertEqual(rows['bulk density (profile volume)'][:2], ['0.540 g/cm³', '0.615 g/cm³'])
@@ -396,5 +401,6 @@ class TestPaperTable(unittest.TestCase):
                                            p_center_over_hydrostatic=None))
         self.assertIn('| no straight flank (pile too small) |', text)
         self.assertIn('| – (0 pairs), null – |', text)
+        self.assertIn('reciprocity: median \\|n·T′ − n′·T\\|/√(\\|T\\|\\|T′\\|), null |', text)
         self.assertIn('| – [–, –], – |', text)
         self.assertIn('| – (1932 ± 151 dPa) |', text)

@@ -692,7 +692,7 @@ def paper_table(s):
          '%.1f cm/s (Fig. 1, during the feed)' % (P['vmax_m_s'] * CM), ''),
     ]
     lines = ['| quantity | this pile | paper (14 000 grains) | note |', '| --- | --- | --- | --- |']
-    lines += ['| %s |' % ' | '.join(r) for r in rows]
+    lines += ['| %s |' % ' | '.join(cell.replace('|', '\\|') for cell in r) for r in rows]   # '|' inside a cell escaped
     return '\n'.join(lines) + '\n'
 
 
