@@ -6,8 +6,7 @@ progress.csv and segments.csv (module yadecd.runcost).
     python3 scripts/pile_cost.py RUN_DIR [--window 2] [--out DIR]
 
 Prints a table and writes cost.csv and cost.png into DIR (default RUN_DIR). A run carried between
-machines ran on hosts of different speed: the ns per contact-sweep column tells them apart, and
-the total at the best host's cost is printed beside the measured one. Needs numpy and matplotlib
+machines ran on hosts of different speed: the ns per contact-sweep column tells them apart. Needs numpy and matplotlib
 only (Debian's /usr/bin/python3 or YADE's).
 """
 import argparse
@@ -69,10 +68,7 @@ def main(argv=None):
         print('%9.3f %9.3f %4d %7d %8d %10.1f %10.1f' % (r['t_from_s'], r['t_to_s'], r['segment'], r['grains'],
                                                          r['contacts'], r['wall_per_sim_s'], r['ns_per_contact_sweep']))
     wall = sum(r['wall_s'] for r in rows)
-    best = min(r['ns_per_contact_sweep'] for r in rows)
-    at_best = sum(r['wall_s'] * best / r['ns_per_contact_sweep'] for r in rows)
-    print('wall time in these windows %.0f s (%.2f h); at the cheapest window\'s cost per contact-sweep (%.0f ns) '
-          '%.0f s (%.2f h)' % (wall, wall / 3600, best, at_best, at_best / 3600))
+    print('wall time in these windows %.0f s (%.2f h)' % (wall, wall / 3600))
     for k, s in enumerate(segments):
         print('segment %d: from t = %.3f s, %s thread(s), %s, %s' % (k, s['t_start_s'], s['threads'], s['host'], s['cpu']))
     out = args.out or args.run

@@ -265,6 +265,8 @@ class TestEnsembleDriver(unittest.TestCase):
             with self.assertRaises(ValueError):
                 ens.parse_seeds(bad)
         self.assertAlmostEqual(ens.feed_time(2000), 10.0, delta=1e-12)
+        # steps between creations: 25 at the paper's h, 5 at 1e-3, rounded (2.5 -> 2), never 0
+        self.assertEqual([ens.creation_period(200.0, dt) for dt in (2e-4, 1e-3, 2e-3, 1e-2)], [25, 5, 2, 1])
         self.assertEqual(ens.epochs(2000, 1.0), '5.0000,10.0000,11.0000')
 
     def test_plan_is_kept_and_protected(self):

@@ -70,10 +70,11 @@ class TestSegmentLog(unittest.TestCase):
             self.assertEqual(runcost.read_segments(os.path.join(d, 'segments.csv')), [])
             runcost.append_segment(d, 0.0, 0.0, 2)
             runcost.append_segment(d, 25.975, 8349.4, 1)
+            runcost.append_segment(d, 20.0, 7000.0, 2)   # a resume from an older checkpoint after a crash
             segs = runcost.read_segments(os.path.join(d, 'segments.csv'))
-            self.assertEqual([s['t_start_s'] for s in segs], [0.0, 25.975])
-            self.assertEqual([s['threads'] for s in segs], ['2', '1'])
-            self.assertAlmostEqual(segs[1]['wall_before_s'], 8349.4)
+            self.assertEqual([s['t_start_s'] for s in segs], [0.0, 20.0, 25.975])   # in order of start time
+            self.assertEqual([s['threads'] for s in segs], ['2', '2', '1'])
+            self.assertAlmostEqual(segs[2]['wall_before_s'], 8349.4)
             self.assertTrue(segs[0]['host'] and segs[0]['cpu'])
 
 

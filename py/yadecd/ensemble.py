@@ -32,11 +32,14 @@ def run_name(n_grains, seed):
     return 'n%d_s%d' % (n_grains, seed)
 
 
+def creation_period(rate=RATE_DEFAULT, dt=DT_DEFAULT):
+    """Steps between two grain creations: round(1/(rate·dt)), at least 1 (pile.run's rule)."""
+    return max(1, int(round(1.0 / (rate * dt))))
+
+
 def feed_time(n_grains, rate=RATE_DEFAULT, dt=DT_DEFAULT):
-    """Simulated time [s] at which the last grain is created: creations happen every
-    round(1/(rate·dt)) steps (pile.run's rule)."""
-    period = max(1, int(round(1.0 / (rate * dt))))
-    return n_grains * period * dt
+    """Simulated time [s] at which the last grain is created (one every :func:`creation_period` steps)."""
+    return n_grains * creation_period(rate, dt) * dt
 
 
 def epochs(n_grains, relax, rate=RATE_DEFAULT, dt=DT_DEFAULT):

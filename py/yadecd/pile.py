@@ -32,7 +32,7 @@ from yade import O, utils, Vector3
 from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
 from . import engines, runcost, runstate
-from .ensemble import feed_time
+from .ensemble import creation_period, feed_time
 from .checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .scenes import material
 
@@ -741,7 +741,7 @@ class PileRun:
 
     def _advance(self, t_stop, stop):
         p, clock, feeder = self.p, self.clock, self.feeder
-        period = max(1, int(round(1 / (p['rate'] * p['dt']))))  # steps between creations
+        period = creation_period(p['rate'], p['dt'])
         t_feed_end = feed_end_time(p)
         t_end = t_feed_end + p['relax']
         t_stop = min(t_end, t_stop or p['stop_time'] or t_end)

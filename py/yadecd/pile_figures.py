@@ -663,9 +663,10 @@ def paper_table(s):
     P = PAPER
     dip, rec, law = s.get('dip') or {}, s.get('reciprocity') or {}, s.get('fossil_law') or {}
     ci = dip.get('ci95') or [None, None]
-    slope = (_fmt_or_dash(s.get('slope_deg'), '%.1f°') +
-             (' ± %.1f°' % s['slope_err_deg'] if s.get('slope_deg') is not None and s.get('slope_err_deg') is not None else '')
-             if s.get('slope_deg') is not None else 'no straight flank (%s)' % (s.get('slope_note') or 'too small'))
+    if s.get('slope_deg') is None:
+        slope = 'no straight flank (%s)' % (s.get('slope_note') or 'too small')
+    else:
+        slope = '%.1f°' % s['slope_deg'] + (' ± %.1f°' % s['slope_err_deg'] if s.get('slope_err_deg') is not None else '')
     rows = [
         ('grains (pile, without the paving)', '%d' % s['n_pile_grains'], '14 000', ''),
         ('time', '%.2f s' % s['time_s'], 'about 72 s (feed 70 s)', 'the snapshot analysed'),

@@ -56,7 +56,9 @@ def read_progress(path):
 
 
 def read_segments(path):
-    """``segments.csv`` as a list of dicts (empty when the file is absent: runs older than it)."""
+    """``segments.csv`` as a list of dicts in the order of their simulated start time (the order
+    :func:`cost_windows` numbers them in; a resume from an older checkpoint after a crash starts
+    earlier than the segment before it); empty when the file is absent (runs older than it)."""
     if not os.path.exists(path):
         return []
     with open(path, newline='') as f:
@@ -65,7 +67,7 @@ def read_segments(path):
         r['t_start_s'] = float(r['t_start_s'])
         r['started_unix'] = float(r['started_unix'])
         r['wall_before_s'] = float(r['wall_before_s'])
-    return rows
+    return sorted(rows, key=lambda r: r['t_start_s'])
 
 
 def cost_windows(progress, dt, window_s, segments=(), min_lines=5):
@@ -74,7 +76,7 @@ def cost_windows(progress, dt, window_s, segments=(), min_lines=5):
     :param progress: :func:`read_progress`'s dict.
     :param dt: the run's time step [s].
     :param window_s: window length in simulated time [s].
-    :param segments: :func:`read_segments`'s list (the interval of two progress lines that
+    :param segments: :func:`read_segments`'s list, numbered in order of start time (the interval of two progress lines that
         straddles a segment start is left out: part of it was run, and lost, by the segment before).
     :returns: list of dicts: window start and end [s], segment index (−1 without segments), grains
         and contacts at the window's end, wall time [s], simulated time [s], wall per simulated

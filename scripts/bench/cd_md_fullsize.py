@@ -70,7 +70,7 @@ def run_case(method, young=None, dt=None, scale=1.0):
     """Restart from the snapshot, feed and run --time simulated seconds; returns the CSV row."""
     over = dict(method=method, dt=dt) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
     p = pile.scene_from_snapshot(args.snapshot, **over)
-    period = max(1, int(round(1 / (p['rate'] * p['dt']))))
+    period = pile.creation_period(p['rate'], p['dt'])
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
     sim, warmup = args.time * scale, args.warmup * scale
     warm, steps = int(round(warmup / O.dt)), int(round(sim / O.dt))

@@ -36,7 +36,7 @@ for key, value in (('tolerance', a.tolerance), ('sweepOrder', a.schedule), ('sla
     if value is not None:
         setattr(cd, key, value)
 feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {}) if a.feed else None
-period = max(1, int(round(1 / (p['rate'] * p['dt']))))
+period = pile.creation_period(p['rate'], p['dt'])
 for k in range(a.warmup + 1):
     if feeder and O.iter % period == 0:
         feeder.create()

@@ -137,7 +137,7 @@ class Feed:
 
     def __init__(self, p, enabled):
         self.enabled, self.p = enabled, p
-        self.period = max(1, int(round(1 / (p['rate'] * p['dt']))))
+        self.period = pile.creation_period(p['rate'], p['dt'])
         self.feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
 
     def __call__(self):
