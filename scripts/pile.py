@@ -2,6 +2,7 @@
 
     yade -n -x scripts/pile.py [--out DIR] [--n-grains N] [--relax T] [--seed S] [...]
     yade -n -x scripts/pile.py --out DIR --resume        # continue from the last checkpoint
+    yade -n -x scripts/pile.py --out NEW --branch-from DIR --tolerance 3e-3   # DIR's state, another solver setting
     yade-batch table.txt scripts/pile.py                  # one pile per table row
 
 Every option defaults to the paper's value (see ``yadecd.pile.DEFAULTS``; SI units: metres,
@@ -27,6 +28,9 @@ parser = argparse.ArgumentParser(prog='pile.py', description=__doc__.split('\n')
 parser.add_argument('--out', default='out/pile', help='run directory (created)')
 parser.add_argument('--resume', action='store_true', help='continue the run in --out from its newest valid checkpoint '
                     '(only --stop-time, --checkpoint-every, --vtk and --parallel-min-contacts may be given anew)')
+parser.add_argument('--branch-from', metavar='RUN', default=None,
+                    help='start --out as a branch of the run in RUN (from its newest checkpoint) with the solver options '
+                    'given here changed (%s), and continue it' % ', '.join(pile.BRANCH_MAY_CHANGE))
 parser.add_argument('--overwrite', action='store_true', help='start again in --out even if it holds a run (its files are removed)')
 for key, value in pile.DEFAULTS.items():
     flag = '--' + key.replace('_', '-')
@@ -48,8 +52,10 @@ if os.environ.get('YADE_BATCH'):
 
 if args.resume and args.overwrite:
     parser.error('--resume and --overwrite exclude each other')
+if args.branch_from and (args.resume or args.overwrite):
+    parser.error('--branch-from starts a new run directory: it excludes --resume and --overwrite')
 try:
-    p = pile.run(out, resume=args.resume, overwrite=args.overwrite, **params)
+    p = pile.run(out, resume=args.resume, overwrite=args.overwrite, branch_from=args.branch_from, **params)
 except (ValueError, OSError, pile.CheckpointError, pile.runstate.RunStateError) as e:
     # every check of pile.run happens before the first step; a full disk stops a run at its next write
     message = str(e)

@@ -202,6 +202,43 @@ class TestResume(unittest.TestCase):
         self.assertLess(gap, REBUILT_GAP)
 
 
+    def test_branch(self):
+        """A branch (pile.branch, pile.py --branch-from) starts from its source's newest checkpoint
+        with the solver options changed and recorded, runs to the end with them, and leaves the
+        source untouched; an option of the pile itself, an unknown one or an occupied directory is
+        refused before anything is copied."""
+        src = self.stopped_run('branch_source', stops=(0.1,))
+        with open(os.path.join(src, 'run.json')) as f:
+            source_json = f.read()
+        tol = json.loads(source_json)['tolerance']
+        dest = os.path.join(self.tmp, 'branch')
+        p = pile.run(dest, branch_from=src, tolerance=3 * tol, **QUIET)
+        self.assertTrue(p['finished'])
+        self.assertEqual(O.engines[-1].tolerance, 3 * tol)            # the branch's steps used it
+        self.assertEqual(p['tolerance'], 3 * tol)
+        [record] = p['branches']
+        self.assertAlmostEqual(record['time'], 0.1, delta=1e-12)
+        self.assertEqual(record['changes'], {'tolerance': [tol, 3 * tol]})
+        self.assertEqual(os.path.realpath(record['source']), os.path.realpath(src))
+        with open(os.path.join(src, 'run.json')) as f:
+            self.assertEqual(f.read(), source_json)                  # the source is untouched
+        end = faults.final_state(dest)
+        np.testing.assert_array_equal(end['ids'], self.ref['ids'])   # same grains, same feed
+        for options, error, word in (({'n_grains': 31}, ValueError, 'n_grains'),
+                                     ({'dt': 1e-4}, ValueError, 'dt'),
+                                     ({'no_such_option': 1}, ValueError, 'no_such_option'),
+                                     ({'tolerance': -1.0}, ValueError, 'tolerance')):
+            with self.subTest(options=options):
+                bad = os.path.join(self.tmp, 'branch_bad')
+                with self.assertRaisesRegex(error, word):
+                    pile.branch(src, bad, options, **QUIET)
+                self.assertFalse(os.path.exists(bad))
+        with self.assertRaisesRegex(FileExistsError, 'never replaces'):
+            pile.branch(src, dest, {'tolerance': tol}, **QUIET)
+        with self.assertRaisesRegex(FileNotFoundError, 'no run.json'):
+            pile.branch(os.path.join(self.tmp, 'nothing_here'), os.path.join(self.tmp, 'b2'), {}, **QUIET)
+
+
 class TestPreviousRelease(unittest.TestCase):
     """A checkpoint written by the first release (commit 6e7a405: checkpoint.yade.gz +
     checkpoint.json), kept in tests/data, resumes with this code and ends exactly where that

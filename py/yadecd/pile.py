@@ -430,6 +430,9 @@ def snapshot_times(p, t_end):
 
 # Options a resumed run may be given anew; any other option must equal the run's own.
 RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk', 'parallel_min_contacts')
+# what a branch (:func:`branch`) may change besides: how precisely each step is solved, not the
+# pile's physics or protocol (grains, feed, time step, friction)
+BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_momentum')
 
 
 def _epoch_list(epochs):
@@ -885,7 +888,53 @@ def clear_run(run_dir, keep=()):
             shutil.rmtree(path)
 
 
-def run(run_dir, resume=False, log=print, overwrite=False, **overrides):
+def branch(src, dest, options, log=print):
+    """Start a branch of the pile run in ``src`` in ``dest``: the run's portable part copied
+    (:func:`yadecd.carry.carry`, from its newest valid checkpoint), the solver options among
+    ``options`` (BRANCH_MAY_CHANGE) applied from that point on; any other option given must equal
+    the source's. ``run.json`` of the branch keeps the source's parameters and history
+    (progress, segments) and lists, under ``branches``, where it left its source: the source,
+    the simulated time, the checkpoint, and each changed option as [before, after]. Continue it
+    with ``resume``. Used to run a faster solver setting from a long run's state and compare
+    the two, or to finish a run at that setting.
+
+    :raises FileNotFoundError: ``src`` holds no run.json.
+    :raises ValueError: an option outside BRANCH_MAY_CHANGE that differs from the source's, or a bad value.
+    :raises FileExistsError: ``dest`` already holds a run (a branch never replaces one)."""
+    from yadecd.carry import carry
+    src_json = os.path.join(src, 'run.json')
+    if not os.path.exists(src_json):
+        raise FileNotFoundError('nothing to branch from in %s: it holds no run.json' % src)
+    with open(src_json) as f:
+        before = dict(DEFAULTS, **json.load(f))
+    options = {k: v for k, v in options.items() if v is not None}
+    unknown = sorted(set(options) - set(DEFAULTS))
+    if unknown:
+        raise ValueError('unknown pile parameters: %s' % ', '.join(unknown))
+    clash = ['%s (source: %r, given: %r)' % (k, before.get(k), v) for k, v in sorted(options.items())
+             if k not in BRANCH_MAY_CHANGE and before.get(k) != v]
+    if clash:
+        raise ValueError('a branch may change only %s; these differ from %s: %s'
+                         % (', '.join(BRANCH_MAY_CHANGE), src, ', '.join(clash)))
+    changes = {k: v for k, v in options.items() if k in BRANCH_MAY_CHANGE and before.get(k) != v}
+    check_params({k: v for k, v in dict(before, **changes).items() if k in DEFAULTS})
+    if has_run(dest):
+        raise FileExistsError('%s already holds a pile run: a branch never replaces one' % dest)
+    record = carry(src, dest, log=log)
+    path = os.path.join(dest, 'run.json')
+    with open(path) as f:
+        p = json.load(f)
+    p.setdefault('branches', []).append({
+        'source': os.path.abspath(src), 'time': record['time'], 'checkpoint': record['checkpoint'],
+        'changes': {k: [before.get(k), v] for k, v in sorted(changes.items())}})
+    p.update(changes)
+    _write_json(path, p)
+    log('branch %s of %s at t=%.3f s: %s' % (dest, src, record['time'], ', '.join(
+        '%s %r -> %r' % (k, before.get(k), v) for k, v in sorted(changes.items())) or 'no option changed'))
+    return p
+
+
+def run(run_dir, resume=False, log=print, overwrite=False, branch_from=None, **overrides):
     """Build (or resume) a pile in ``run_dir``; returns the run's parameter dict.
 
     Every check happens before the first step: bad parameters (ValueError), an existing run
@@ -893,7 +942,13 @@ def run(run_dir, resume=False, log=print, overwrite=False, **overrides):
     resumed (ValueError), an unwritable or too-full directory (CheckpointError). Progress lines
     give simulated time, grains, contacts, Gauss–Seidel sweeps and residual of the last step, the
     wall-clock rate and the ETA (the current cost of a simulated second, grown with the grain
-    count: :func:`eta_seconds`). Snapshots go to ``snap_<t>.npz``; checkpoints to ``ckpt/``."""
+    count: :func:`eta_seconds`). Snapshots go to ``snap_<t>.npz``; checkpoints to ``ckpt/``.
+    ``branch_from``: start ``run_dir`` as a :func:`branch` of that run (the solver options among
+    ``overrides`` changed), then continue it; other options must match the source's."""
+    if branch_from is not None:
+        branch(branch_from, run_dir, overrides, log)
+        overrides = {k: v for k, v in overrides.items() if k in RESUME_MAY_CHANGE}
+        resume = True
     if resume:
         return PileRun.resume(run_dir, overrides, log).advance()
     r = PileRun.start(run_dir, overrides, log, overwrite=overwrite)

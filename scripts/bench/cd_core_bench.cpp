@@ -10,7 +10,10 @@
 //   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1]
 //                            [--tolerance T] [--time-sweeps 0|1] [--parallel-min-contacts N]
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
+//                            [--history OUT.csv]
 //
+// --history writes the residual after every sweep of one more solve (the exact residual evaluated
+// at each sweep, which may stop that solve a sweep or two earlier than the timed one).
 // Options not given keep the file's values. Threads: OMP_NUM_THREADS (the parallel schedules
 // give the same results for any count).
 #include "core/ProblemFile.hpp"
@@ -81,7 +84,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT]\n", what);
 	std::exit(2);
 }
 
@@ -90,7 +93,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 int main(int argc, char** argv)
 {
 	if (argc < 2) usage("no problem file given");
-	std::string file = argv[1], csv;
+	std::string file = argv[1], csv, history;
 	int         k1 = 20, k2 = 120, repeat = 3;
 	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
 	double      tolerance = -1;
@@ -111,6 +114,7 @@ int main(int argc, char** argv)
 		else if (a == "--k2") k2 = std::stoi(v);
 		else if (a == "--repeat") repeat = std::stoi(v);
 		else if (a == "--csv") csv = v;
+		else if (a == "--history") history = v;
 		else usage(("unknown option " + a).c_str());
 	}
 	if (!(k1 >= 1 && k2 > k1 && repeat >= 1)) usage("need 1 ≤ k1 < k2 and repeat ≥ 1");
@@ -140,6 +144,19 @@ int main(int argc, char** argv)
 		std::printf("  step at the file's tolerance %g: %d sweeps (residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
 		            double(p.tolerance), step.sweeps, step.residual, step.correctionSweeps, step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
 		if (timeSweeps) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
+		if (!history.empty()) {
+			cd::Params q     = p;
+			q.recordResidual = true;
+			cd::Solver s;
+			pb.load(s);
+			s.assemble(q);
+			const cd::SolveStats st = s.solve(q);
+			std::ofstream        out(history);
+			out << "sweep,residual\n";
+			for (size_t i = 0; i < st.residualHistory.size(); ++i)
+				out << (i + 1) * q.checkEvery << ',' << double(st.residualHistory[i]) << '\n';
+			std::printf("  residual history: %zu sweeps written to %s\n", st.residualHistory.size(), history.c_str());
+		}
 		if (!csv.empty()) {
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();

@@ -1,16 +1,27 @@
-"""Save one step of a pile state as a problem file for the core benchmark (build/cd_core_bench).
+"""Save steps of a pile as problem files for the core benchmark (build/cd_core_bench).
 
-    scripts/yade -j1 -n -x scripts/bench/save_step.py RUN/snap_XXXX.npz OUT.cdp [--warmup 20] [--feed]
-                  [--tolerance 1e-3] [--schedule 5] [--slabs 2]
+    scripts/yade -j1 -n -x scripts/bench/save_step.py SOURCE OUT.cdp [--warmup 20] [--feed]
+                  [--count 1] [--spacing 1] [--tolerance 1e-3] [--schedule 5] [--slabs 2]
 
-The pile is rebuilt from the snapshot (yadecd.pile.scene_from_snapshot), stepped ``--warmup``
-times so that contacts and warm-start impulses are back (snapshots hold none), creating grains by
-the pile protocol meanwhile with ``--feed`` (as at the end of a deposition), and the next step's
-input to the solver core is written to OUT (ContactDynamicsIntegrator.problemFile).
+SOURCE is either
+  - a snapshot (RUN/snap_XXXX.npz): the pile is rebuilt from it (yadecd.pile.scene_from_snapshot)
+    and stepped ``--warmup`` times so that contacts and warm-start impulses are back (snapshots
+    hold none), creating grains by the pile protocol meanwhile with ``--feed`` (as at the end of
+    a deposition); or
+  - a run directory (one holding run.json and a checkpoint, e.g. a carried run in runs/): the run
+    is resumed from its newest checkpoint in a scratch copy (the run itself is never touched) and
+    advanced ``--warmup`` steps by its own protocol (feeding included): the saved steps are the
+    run's own, with its impulses, spins and landing history.
+
+Then the next step's input to the solver core is written to OUT
+(ContactDynamicsIntegrator.problemFile); with ``--count N``, N steps ``--spacing`` steps apart are
+written to OUT with _0 … _{N−1} before its extension.
 """
 import argparse
 import os
+import shutil
 import sys
+import tempfile
 
 import numpy as np
 
@@ -20,28 +31,79 @@ import yadecd
 from yadecd import pile
 
 ap = argparse.ArgumentParser(prog='save_step.py', description=__doc__.split('\n')[0])
-ap.add_argument('snapshot')
+ap.add_argument('source', help='a snapshot (.npz) or a run directory')
 ap.add_argument('out')
 ap.add_argument('--warmup', type=int, default=20)
-ap.add_argument('--feed', action='store_true')
+ap.add_argument('--feed', action='store_true', help='snapshots: create grains by the protocol during the steps (runs always do)')
+ap.add_argument('--count', type=int, default=1, help='steps to save')
+ap.add_argument('--spacing', type=int, default=1, help='steps between two saved steps')
 ap.add_argument('--tolerance', type=float, default=None, help="solver tolerance (default: the run's)")
 ap.add_argument('--schedule', type=int, default=None, help='sweepOrder (default: the run\'s)')
 ap.add_argument('--slabs', type=int, default=None)
 a = ap.parse_args(sys.argv[1:])
-if not os.path.exists(a.snapshot):
-    ap.error('no snapshot %s' % a.snapshot)
-p = pile.scene_from_snapshot(a.snapshot)
-cd = yadecd.integrator()
-for key, value in (('tolerance', a.tolerance), ('sweepOrder', a.schedule), ('slabs', a.slabs)):
-    if value is not None:
-        setattr(cd, key, value)
-feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {}) if a.feed else None
-period = pile.creation_period(p['rate'], p['dt'])
-for k in range(a.warmup + 1):
-    if feeder and O.iter % period == 0:
-        feeder.create()
-    if k == a.warmup:
-        cd.problemFile = a.out
-    O.step()
-print('save_step: %s: %d bodies, %d contacts, %d sweeps in the saved step (tolerance %g, sweepOrder %d, slabs %d)'
-      % (a.out, len(O.bodies), cd.nContacts, cd.iterations, cd.tolerance, cd.sweepOrder, cd.slabs))
+if not os.path.exists(a.source):
+    ap.error('no snapshot or run directory %s' % a.source)
+if a.warmup < 0 or a.count < 1 or a.spacing < 1:
+    ap.error('need --warmup >= 0, --count >= 1 and --spacing >= 1')
+from_run = os.path.isdir(a.source)
+if from_run and not os.path.exists(os.path.join(a.source, 'run.json')):
+    ap.error('%s is a directory without run.json: not a pile run' % a.source)
+
+
+def outputs():
+    if a.count == 1:
+        return [a.out]
+    stem, ext = os.path.splitext(a.out)
+    return ['%s_%d%s' % (stem, i, ext or '.cdp') for i in range(a.count)]
+
+
+def configure(cd):
+    for key, value in (('tolerance', a.tolerance), ('sweepOrder', a.schedule), ('slabs', a.slabs)):
+        if value is not None:
+            setattr(cd, key, value)
+
+
+def report(path, cd):
+    print('save_step: %s: %d bodies, %d contacts, %d sweeps in the saved step (tolerance %g, sweepOrder %d, slabs %d)'
+          % (path, len(O.bodies), cd.nContacts, cd.iterations, cd.tolerance, cd.sweepOrder, cd.slabs), flush=True)
+
+
+if from_run:
+    scratch = tempfile.mkdtemp(prefix='save_step_')
+    try:
+        for name in os.listdir(a.source):      # what a resume reads; snapshots stay behind
+            src = os.path.join(a.source, name)
+            if name == 'ckpt':
+                shutil.copytree(src, os.path.join(scratch, name))
+            elif name in ('run.json', 'progress.csv', 'segments.csv'):
+                shutil.copy2(src, scratch)
+        run = pile.PileRun.resume(scratch, {}, log=lambda m: print('save_step: ' + m, flush=True))
+        cd = O.engines[-1]
+        configure(cd)
+        dt = run.p['dt']
+        run.advance(run.clock.time() + a.warmup * dt)
+        for i, path in enumerate(outputs()):
+            if i and a.spacing > 1:
+                run.advance(run.clock.time() + (a.spacing - 1) * dt)
+            cd.problemFile = path
+            run.advance(run.clock.time() + dt)
+            report(path, cd)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+else:
+    p = pile.scene_from_snapshot(a.source)
+    cd = yadecd.integrator()
+    configure(cd)
+    feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {}) if a.feed else None
+    period = pile.creation_period(p['rate'], p['dt'])
+    paths = outputs()
+    last = a.warmup + (a.count - 1) * a.spacing
+    for k in range(last + 1):
+        if feeder and O.iter % period == 0:
+            feeder.create()
+        i = (k - a.warmup) // a.spacing
+        if k >= a.warmup and (k - a.warmup) % a.spacing == 0:
+            cd.problemFile = paths[i]
+        O.step()
+        if k >= a.warmup and (k - a.warmup) % a.spacing == 0:
+            report(paths[i], cd)
