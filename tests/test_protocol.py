@@ -108,5 +108,31 @@ class TestEnsembleEpochs(unittest.TestCase):
         self.assertEqual(ens.feed_time(1000, 200.0, 1e-3), ens.feed_time(1000, 200.0, 2e-4))
 
 
+class TestPaired(unittest.TestCase):
+    """A run against its branch, one epoch: differences and their size in seed spreads."""
+
+    def test_known_differences(self):
+        ref = {'slope_deg': 27.0, 'packing_fraction': 0.60, 'H_m': 0.05, 'dip_D': None}
+        branch = {'slope_deg': 27.5, 'packing_fraction': 0.59, 'H_m': float('nan'), 'dip_D': 0.1}
+        spreads = {'slope_deg': 1.0, 'packing_fraction': 0.02, 'H_m': 0.001, 'dip_D': 0.0}
+        r = pr.paired(ref, branch, spreads, keys=('slope_deg', 'packing_fraction', 'H_m', 'dip_D', 'n_contacts'))
+        self.assertAlmostEqual(r['slope_deg']['delta'], 0.5)
+        self.assertAlmostEqual(r['slope_deg']['delta_over_spread'], 0.5)
+        self.assertAlmostEqual(r['packing_fraction']['delta_over_spread'], -0.5)
+        # a missing value, a nan, a zero or absent spread: nan, never a number made up
+        self.assertTrue(math.isnan(r['H_m']['delta']))
+        self.assertTrue(math.isnan(r['dip_D']['ref']) and math.isnan(r['dip_D']['delta_over_spread']))
+        self.assertTrue(math.isnan(r['n_contacts']['spread']))
+
+    def test_spreads_and_table(self):
+        summary = {'stats': {'2000_feed': {'slope_deg': {'std': 0.8, 'mean': 27.9}, 'n_runs': 8, 'seeds': [1, 2]}}}
+        self.assertEqual(pr.ensemble_spreads(summary, '2000_feed'), {'slope_deg': 0.8})
+        with self.assertRaisesRegex(KeyError, '2000_feed'):
+            pr.ensemble_spreads(summary, '5000_feed')
+        res = pr.paired({'H_m': 0.05}, {'H_m': 0.051}, {'H_m': 0.002}, keys=('H_m',))
+        table = pr.paired_markdown([('t = 25 s', res)], '2000 grains')
+        self.assertIn('| t = 25 s | apex height H | 5 cm | 5.1 cm | +0.1 cm | +0.50 |', table)
+
+
 if __name__ == '__main__':
     unittest.main()

@@ -16,3 +16,16 @@ def write_csv(path, rows, log=print):
         w.writerows(rows)
     log('wrote %s' % path)
     return path
+
+
+def sweeps_to(history, thresholds):
+    """For each threshold, the first sweep (1-based) after which the residual ``history`` (one
+    value per sweep) is at or below it, or None if it never is. The residual of Gauss–Seidel
+    with momentum is not monotone: a threshold counts as reached at its first crossing, as the
+    solver's stopping test would see it when checked at every sweep."""
+    out = []
+    for th in thresholds:
+        if not th > 0:
+            raise ValueError('sweeps_to: thresholds must be positive, not %r' % (th,))
+        out.append(next((i + 1 for i, r in enumerate(history) if r <= th), None))
+    return out

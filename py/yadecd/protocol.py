@@ -216,3 +216,48 @@ def save_json(results, path):
     from .pile_figures import _clean
     with open(path, 'w') as fh:
         json.dump(_clean(results), fh, indent=1, sort_keys=True)
+
+
+# ---------------------------------------------------------------------------- branches
+
+def paired(rec_ref, rec_branch, spreads, keys=None):
+    """One run against its branch (:func:`yadecd.pile.branch`) at one epoch, observable by
+    observable. The two share the state at the branch point and the grains fed after it, so
+    their difference is the setting's effect plus the divergence that any change makes in a
+    granular pile; it is read against ``spreads`` (key -> the spread between seeds of an ensemble,
+    the scale on which a protocol matters). Returns {key: dict(ref, branch, delta,
+    delta_over_spread, spread)}; missing or non-finite values give nan."""
+    out = {}
+    for key in keys or OBSERVABLES:
+        a, b = _finite([rec_ref.get(key)]), _finite([rec_branch.get(key)])
+        s = spreads.get(key)
+        s = float(s) if s is not None and math.isfinite(float(s)) and float(s) > 0 else float('nan')
+        ra = float(a[0]) if len(a) else float('nan')
+        rb = float(b[0]) if len(b) else float('nan')
+        d = rb - ra
+        out[key] = {'ref': ra, 'branch': rb, 'delta': d, 'spread': s, 'delta_over_spread': d / s}
+    return out
+
+
+def ensemble_spreads(summary, group):
+    """key -> spread between seeds of group ``group`` (e.g. '2000_feed') of an
+    ``ensemble_summary.json`` dict; KeyError naming the groups there when absent."""
+    stats = summary['stats']
+    if group not in stats:
+        raise KeyError('no group %r in the ensemble summary (it has %s)' % (group, ', '.join(sorted(stats))))
+    return {k: v['std'] for k, v in stats[group].items() if isinstance(v, dict) and 'std' in v}
+
+
+def paired_markdown(rows, spread_source):
+    """A markdown table of :func:`paired` results: rows is a list of (epoch label, result)."""
+    lines = ['| epoch | observable | run | branch | branch − run | in seed spreads (%s) |' % spread_source,
+             '| --- | --- | --- | --- | --- | --- |']
+    for label, res in rows:
+        for key, r in res.items():
+            name, factor, unit = OBSERVABLES.get(key, (key, 1.0, ''))
+            u = ' ' + unit if unit else ''
+            f = (lambda x: 'n/a' if not math.isfinite(x) else '%.4g%s' % (x * factor, u))
+            ratio = 'n/a' if not math.isfinite(r['delta_over_spread']) else '%+.2f' % r['delta_over_spread']
+            lines.append('| %s | %s | %s | %s | %s | %s |' % (label, name, f(r['ref']), f(r['branch']),
+                                                            ('%+.4g%s' % (r['delta'] * factor, u)) if math.isfinite(r['delta']) else 'n/a', ratio))
+    return '\n'.join(lines) + '\n'
