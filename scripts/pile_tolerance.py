@@ -1,12 +1,16 @@
 """How much do the pile's force analyses depend on the Gauss–Seidel tolerance?
 
     scripts/yade -n -x scripts/pile_tolerance.py RUN_DIR [--tolerance 1e-2] [--tight 1e-6] [--out FILE]
+                                                 [--snapshot TIGHT.npz]
 
 Loads the run's checkpoint, re-solves one step with the run's own tolerance (or ``--tolerance``) and with a much
 tighter one (from the same saved state, same warm start), and compares the ground-pressure
 profile (per ring) and band force densities (vertical and horizontal cuts through the pile).
 Writes RUN_DIR/tolerance_effect.json and prints the relative changes: where they exceed the
-ring error bars, the figure's numbers are solver noise.
+ring error bars, the figure's numbers are solver noise. ``--snapshot`` also keeps the tight
+step's snapshot (the state one step after the checkpoint, its forces solved to ``--tight``), which
+``pile_figures.py`` analyses like any other: the figures of a run made at a loose tolerance then
+carry the forces of a tight one.
 """
 import argparse
 import json
@@ -25,9 +29,32 @@ ap.add_argument('--tolerance', type=float, default=None, help="the tolerance to 
 ap.add_argument('--tight', type=float, default=1e-6)
 ap.add_argument('--max-iter', type=int, default=200000)
 ap.add_argument('--out', default=None)
+ap.add_argument('--snapshot', default=None, help="keep the tight step's snapshot at this path (.npz)")
 a = ap.parse_args(sys.argv[1:])
 with open(os.path.join(a.run_dir, 'run.json')) as f:
     p = json.load(f)
+
+
+def births():
+    """Birth times of the grains (the fossil-layer analyses need them), from the run's newest
+    snapshot; grains born after it keep -1 (said)."""
+    snaps = pa.list_snapshots(a.run_dir)
+    if not snaps:
+        return {}
+    with np.load(snaps[-1][1]) as z:
+        known = {int(i): float(b) for i, b in zip(z['ids'], z['birth'])}
+    missing = sum(1 for b in O.bodies if b.dynamic and b.id not in known)
+    if missing:
+        print('%d grains born after the newest snapshot %s have no birth time' % (missing, snaps[-1][1]))
+    return known
+
+
+def run_time():
+    """The run's simulated time after the re-solved step: the checkpoint's time plus one step
+    (a scene rebuilt from state.npz on a resume counts O.time from its rebuild, not from 0)."""
+    latest = pile.CheckpointStore(a.run_dir).latest()
+    t = latest[2].get('meta', {}).get('time') if latest is not None else None
+    return (t + O.dt) if t is not None else O.time
 
 
 def solve(tol):
@@ -39,6 +66,8 @@ def solve(tol):
     dt = time.time() - t0
     path = os.path.join(tempfile.mkdtemp(), 'snap.npz')
     pile.snapshot(path, {}, p)
+    if a.snapshot and tol == a.tight:
+        pile.snapshot(a.snapshot, births(), p, t=run_time())
     return pa.load_snapshot(path), dict(tolerance=tol, sweeps=cd.iterations, residual=cd.residual, converged=cd.converged, wall_s=dt)
 
 
