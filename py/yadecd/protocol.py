@@ -229,11 +229,9 @@ def paired(rec_ref, rec_branch, spreads, keys=None):
     delta_over_spread, spread)}; missing or non-finite values give nan."""
     out = {}
     for key in keys or OBSERVABLES:
-        a, b = _finite([rec_ref.get(key)]), _finite([rec_branch.get(key)])
-        s = spreads.get(key)
-        s = float(s) if s is not None and math.isfinite(float(s)) and float(s) > 0 else float('nan')
-        ra = float(a[0]) if len(a) else float('nan')
-        rb = float(b[0]) if len(b) else float('nan')
+        ra, rb, s = (float(v[0]) if len(v) else float('nan')
+                     for v in (_finite([rec_ref.get(key)]), _finite([rec_branch.get(key)]), _finite([spreads.get(key)])))
+        s = s if s > 0 else float('nan')
         d = rb - ra
         out[key] = {'ref': ra, 'branch': rb, 'delta': d, 'spread': s, 'delta_over_spread': d / s}
     return out

@@ -34,10 +34,12 @@ if not os.access(a.bench, os.X_OK):
 rows, histories = [], []
 with tempfile.TemporaryDirectory() as tmp:
     for path in a.steps:
-        hist = os.path.join(tmp, 'h.csv')
-        text = subprocess.run([a.bench, path, '--time-sweeps', '0', '--history', hist], check=True,
-                              capture_output=True, text=True, env=dict(os.environ, OMP_NUM_THREADS='1')).stdout
-        contacts = int(text.split(' contacts;')[0].rsplit(' ', 1)[1])
+        hist, summary = os.path.join(tmp, 'h.csv'), os.path.join(tmp, 's.csv')
+        subprocess.run([a.bench, path, '--time-sweeps', '0', '--history', hist, '--csv', summary], check=True,
+                       capture_output=True, env=dict(os.environ, OMP_NUM_THREADS='1'))
+        with open(summary) as f:
+            contacts = int(next(csv.DictReader(f))['contacts'])
+        os.remove(summary)                      # the bench appends to an existing file
         with open(hist) as f:
             h = [float(r['residual']) for r in csv.DictReader(f)]
         histories.append((os.path.basename(path), h))

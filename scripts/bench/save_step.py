@@ -69,18 +69,21 @@ def report(path, cd):
 
 
 if from_run:
+    from yadecd.carry import carry
     scratch = tempfile.mkdtemp(prefix='save_step_')
     try:
-        for name in os.listdir(a.source):      # what a resume reads; snapshots stay behind
-            src = os.path.join(a.source, name)
-            if name == 'ckpt':
-                shutil.copytree(src, os.path.join(scratch, name))
-            elif name in ('run.json', 'progress.csv', 'segments.csv'):
-                shutil.copy2(src, scratch)
-        run = pile.PileRun.resume(scratch, {}, log=lambda m: print('save_step: ' + m, flush=True))
+        copy = os.path.join(scratch, 'run')   # the run's portable part; the run itself is never touched
+        carry(a.source, copy, snap_every=1e9, log=lambda m: None)
+        run = pile.PileRun.resume(copy, {}, log=lambda m: print('save_step: ' + m, flush=True))
         cd = O.engines[-1]
         configure(cd)
         dt = run.p['dt']
+        t_end = pile.feed_end_time(run.p) + run.p['relax']
+        steps = a.warmup + (a.count - 1) * a.spacing + 1
+        if run.clock.time() + steps * dt > t_end + 0.5 * dt:
+            sys.exit('save_step: the run in %s ends at t = %.3f s and its checkpoint is at t = %.3f s: fewer than the %d '
+                     'steps asked are left; save steps from one of its snapshots instead'
+                     % (a.source, t_end, run.clock.time(), steps))
         run.advance(run.clock.time() + a.warmup * dt)
         for i, path in enumerate(outputs()):
             if i and a.spacing > 1:
@@ -96,14 +99,12 @@ else:
     configure(cd)
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {}) if a.feed else None
     period = pile.creation_period(p['rate'], p['dt'])
-    paths = outputs()
-    last = a.warmup + (a.count - 1) * a.spacing
-    for k in range(last + 1):
+    saved = {a.warmup + i * a.spacing: path for i, path in enumerate(outputs())}   # step index -> file
+    for k in range(max(saved) + 1):
         if feeder and O.iter % period == 0:
             feeder.create()
-        i = (k - a.warmup) // a.spacing
-        if k >= a.warmup and (k - a.warmup) % a.spacing == 0:
-            cd.problemFile = paths[i]
+        if k in saved:
+            cd.problemFile = saved[k]
         O.step()
-        if k >= a.warmup and (k - a.warmup) % a.spacing == 0:
-            report(paths[i], cd)
+        if k in saved:
+            report(saved[k], cd)
