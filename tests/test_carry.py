@@ -37,6 +37,10 @@ class TestSnapshotChoice(unittest.TestCase):
         self.assertEqual(chosen_snapshots([snap(0.1 * k) for k in range(1, 7)], 0.3), [snap(0.3), snap(0.6)])
         self.assertEqual(chosen_snapshots([snap(20)], 10), [snap(20)])     # newest already a multiple: once
         self.assertEqual(chosen_snapshots([], 10), [])
+        # the end of the feed is kept although it is not a multiple (a 5000-grain pile: 25 s at 200 grains/s)
+        names = [snap(t) for t in (2, 10, 20, 24, 25, 26)]
+        self.assertEqual(chosen_snapshots(names, 10, also=(25.0,)), [snap(10), snap(20), snap(25), snap(26)])
+        self.assertEqual(chosen_snapshots(names, 10, also=(25.0004,)), [snap(10), snap(20), snap(26)])
 
     def test_bad_interval(self):
         for bad in (0, -2.0, float('nan')):
@@ -52,7 +56,7 @@ class TestCarry(unittest.TestCase):
         self.src = os.path.join(self.tmp, 'run')
         os.makedirs(self.src)
         with open(os.path.join(self.src, 'run.json'), 'w') as f:
-            json.dump({'n_grains': 10}, f)
+            json.dump({'n_grains': 10, 'rate': 5.0}, f)      # the feed ends at 2 s
         with open(os.path.join(self.src, 'progress.csv'), 'w') as f:
             f.write('t,grains\n0.5,3\n')
         with open(os.path.join(self.src, 'segments.csv'), 'w') as f:
@@ -89,6 +93,16 @@ class TestCarry(unittest.TestCase):
         self.assertEqual(info['meta']['time'], 2.0)
         with open(os.path.join(unit, 'state.npz'), 'rb') as f:
             self.assertEqual(f.read(), b'state 2')
+
+    def test_feed_end_kept(self):
+        """The snapshot at the end of the feed (run.json: 10 grains at 5 per second, 2 s) is carried
+        although it is not a multiple of snap_every; a run.json without a rate keeps only the multiples."""
+        record = carry(self.src, self.dest, snap_every=3, **QUIET)
+        self.assertEqual(record['snapshots'], [snap(2), snap(3)])
+        with open(os.path.join(self.src, 'run.json'), 'w') as f:
+            json.dump({'n_grains': 10}, f)
+        record = carry(self.src, self.dest, snap_every=3, **QUIET)
+        self.assertEqual(record['snapshots'], [snap(3)])
 
     def test_damaged_newest_unit(self):
         """The source's newest unit is truncated: the one before it is carried, and the log says why."""

@@ -7,7 +7,8 @@ analyses read, and nothing machine-specific:
 * ``run.json`` (the parameters), ``progress.csv`` (with the run's wall time so far) and
   ``segments.csv`` (where and when each segment ran, :mod:`yadecd.runcost`);
 * the snapshots ``snap_<t>.npz`` at multiples of ``snap_every`` seconds (all when ``None``),
-  always with the newest one;
+  always with the newest one and the one at the end of the feed (``n_grains / rate`` in run.json:
+  the state the deposit analyses read);
 * the newest *valid* checkpoint unit, reduced to its ``state.npz`` (the layout-independent
   state, :mod:`yadecd.runstate`); YADE's archive ``scene.yade.gz`` is left out: it is the larger
   file and only loads into the very plugin build that wrote it.
@@ -42,18 +43,26 @@ def snapshot_time(name):
         return None
 
 
-def chosen_snapshots(names, snap_every=None, tol=1e-6):
+def chosen_snapshots(names, snap_every=None, also=(), tol=1e-6):
     """The snapshot file names to carry, in time order: those at multiples of ``snap_every`` [s]
-    (all when None) and the newest one."""
+    (all when None), those at the times in ``also`` [s] and the newest one."""
     snaps = sorted((t, n) for n, t in ((n, snapshot_time(n)) for n in names) if t is not None)
     if snap_every is None:
         return [n for _, n in snaps]
     if not snap_every > 0:
         raise ValueError('snap_every must be a positive time in seconds (got %r)' % (snap_every,))
-    keep = [n for t, n in snaps if abs(t / snap_every - round(t / snap_every)) * snap_every < tol]
-    if snaps and snaps[-1][1] not in keep:
-        keep.append(snaps[-1][1])
+    keep = [n for t, n in snaps if abs(t / snap_every - round(t / snap_every)) * snap_every < tol
+            or any(abs(t - a) < tol for a in also) or n == snaps[-1][1]]
     return keep
+
+
+def feed_end(run):
+    """End of the feed [s] of a pile run's parameters (``n_grains / rate``), or None when run.json
+    does not give both."""
+    try:
+        return float(run['n_grains']) / float(run['rate'])
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
 
 
 def carry(src, dest, snap_every=None, log=print):
@@ -85,7 +94,9 @@ def carry(src, dest, snap_every=None, log=print):
     for name in RUN_FILES:
         if os.path.exists(os.path.join(src, name)):
             shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
-    snaps = chosen_snapshots(os.listdir(src), snap_every)
+    with open(os.path.join(src, 'run.json')) as f:
+        end = feed_end(json.load(f))
+    snaps = chosen_snapshots(os.listdir(src), snap_every, also=() if end is None else (end,))
     for name in snaps:
         shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
 
