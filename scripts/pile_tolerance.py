@@ -3,7 +3,8 @@
     scripts/yade -n -x scripts/pile_tolerance.py RUN_DIR [--tolerance 1e-2] [--tight 1e-6] [--out FILE]
                                                  [--snapshot TIGHT.npz]
 
-Loads the run's checkpoint, re-solves one step with the run's own tolerance (or ``--tolerance``) and with a much
+Loads the run's newest checkpoint (``PileRun.load``: YADE's archive, or a carried run's
+``state.npz``), re-solves one step with the run's own tolerance (or ``--tolerance``) and with a much
 tighter one (from the same saved state, same warm start), and compares the ground-pressure
 profile (per ring) and band force densities (vertical and horizontal cuts through the pile).
 Writes RUN_DIR/tolerance_effect.json and prints the relative changes: where they exceed the
@@ -35,30 +36,8 @@ with open(os.path.join(a.run_dir, 'run.json')) as f:
     p = json.load(f)
 
 
-def births():
-    """Birth times of the grains (the fossil-layer analyses need them), from the run's newest
-    snapshot; grains born after it keep -1 (said)."""
-    snaps = pa.list_snapshots(a.run_dir)
-    if not snaps:
-        return {}
-    with np.load(snaps[-1][1]) as z:
-        known = {int(i): float(b) for i, b in zip(z['ids'], z['birth'])}
-    missing = sum(1 for b in O.bodies if b.dynamic and b.id not in known)
-    if missing:
-        print('%d grains born after the newest snapshot %s have no birth time' % (missing, snaps[-1][1]))
-    return known
-
-
-def run_time():
-    """The run's simulated time after the re-solved step: the checkpoint's time plus one step
-    (a scene rebuilt from state.npz on a resume counts O.time from its rebuild, not from 0)."""
-    latest = pile.CheckpointStore(a.run_dir).latest()
-    t = latest[2].get('meta', {}).get('time') if latest is not None else None
-    return (t + O.dt) if t is not None else O.time
-
-
 def solve(tol):
-    O.load(pile.latest_scene(a.run_dir))
+    run = pile.PileRun.load(a.run_dir)   # YADE's archive, or rebuilt from state.npz (a carried run)
     cd = O.engines[-1]
     cd.tolerance, cd.maxIter, cd.warnUnconverged = tol, a.max_iter, False
     t0 = time.time()
@@ -67,7 +46,7 @@ def solve(tol):
     path = os.path.join(tempfile.mkdtemp(), 'snap.npz')
     pile.snapshot(path, {}, p)
     if a.snapshot and tol == a.tight:
-        pile.snapshot(a.snapshot, births(), p, t=run_time())
+        pile.snapshot(a.snapshot, run.births, p, t=run.clock.time())
     return pa.load_snapshot(path), dict(tolerance=tol, sweeps=cd.iterations, residual=cd.residual, converged=cd.converged, wall_s=dt)
 
 

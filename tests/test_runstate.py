@@ -94,6 +94,16 @@ class TestRunState(unittest.TestCase):
         np.testing.assert_array_equal(scene_arrays()[0], before)
 
 
+def _listing(run_dir):
+    """Every file under a run directory with its size and modification time."""
+    out = {}
+    for root, _, files in os.walk(run_dir):
+        for name in files:
+            st = os.stat(os.path.join(root, name))
+            out[os.path.relpath(os.path.join(root, name), run_dir)] = (st.st_size, st.st_mtime_ns)
+    return out
+
+
 class TestResume(unittest.TestCase):
     """Resumes end where an uninterrupted run ends: bit for bit through YADE's archive (same
     plugin), from the previous unit when the newest is damaged, and from a first-release
@@ -178,6 +188,29 @@ class TestResume(unittest.TestCase):
         gap = np.abs(end['pos'] - self.ref['pos']).max() / pile.DEFAULTS['d_min']
         print('rebuilt resume: largest position difference %.3g d_min' % gap)
         self.assertLess(gap, REBUILT_GAP)
+
+    def test_load_leaves_the_run_alone(self):
+        """PileRun.load (the tools' way into a run's state, pile_tolerance.py's) gives the
+        checkpoint's state, time and birth times, through YADE's archive and through a carried
+        copy's state.npz alike, and changes nothing in either directory."""
+        from yadecd.carry import carry
+        run_dir = self.stopped_run('load', stops=(0.1,))
+        carried = os.path.join(self.tmp, 'load_carried')
+        carry(run_dir, carried, log=lambda s: None)
+        seen = {}
+        for d in (run_dir, carried):
+            before = _listing(d)
+            lines = []
+            run = pile.PileRun.load(d, log=lines.append)
+            self.assertAlmostEqual(run.clock.time(), 0.1, delta=1e-12)
+            seen[d] = (np.array([tuple(b.state.pos) for b in O.bodies]), dict(run.births))
+            self.assertEqual(_listing(d), before)
+        self.assertIn('rebuilt from state.npz', run.resumed_from)
+        np.testing.assert_array_equal(seen[run_dir][0], seen[carried][0])
+        self.assertEqual(seen[run_dir][1], seen[carried][1])
+        self.assertGreater(len(seen[run_dir][1]), 0)
+        with self.assertRaisesRegex(FileNotFoundError, 'no run.json'):
+            pile.PileRun.load(self.tmp)
 
     def test_carried_resume(self):
         """A run carried to another directory (yadecd.carry: state.npz only, as committed between

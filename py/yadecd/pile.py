@@ -625,6 +625,31 @@ class PileRun:
         log('resumed %s at t=%.3f s, %d grains (%s)' % (run_dir, self.clock.time(), self.feeder.count, self.resumed_from))
         return self
 
+    @classmethod
+    def load(cls, run_dir, log=print):
+        """The run's newest valid checkpoint loaded into ``O`` without continuing the run, for
+        tools that re-solve or inspect a run's state: nothing in ``run_dir`` changes. Loads YADE's
+        archive when the checkpoint has one written by this plugin, else rebuilds the scene from
+        its ``state.npz`` (a carried run), as :meth:`resume` does; ``clock.time()`` is then the
+        run's time and ``births`` every grain's birth time."""
+        path = os.path.join(run_dir, 'run.json')
+        if not os.path.exists(path):
+            raise FileNotFoundError('%s holds no pile run: no run.json' % run_dir)
+        p = dict(DEFAULTS)
+        with open(path) as f:
+            p.update(json.load(f))
+        self = cls(run_dir, p, log)
+        latest = self.store.latest()
+        for m in self.store.messages:
+            log('checkpoint: ' + m)
+        if latest is not None:
+            self._resume_unit(*latest)
+        elif os.path.exists(os.path.join(run_dir, 'checkpoint.json')):
+            self._resume_release_1()
+        else:
+            raise FileNotFoundError('%s holds no valid checkpoint to load' % run_dir)
+        return self
+
     def _restore_counters(self, meta, births, near):
         self.births.update(births)
         self.rng.bit_generator.state = meta['rng']
@@ -851,18 +876,6 @@ def _write_json(path, data):
         f.flush()
         os.fsync(f.fileno())
     os.replace(path + '.tmp', path)
-
-
-def latest_scene(run_dir):
-    """Path of YADE's archive in the run's newest valid checkpoint (first-release runs: their
-    ``checkpoint.yade.gz``), for tools that load a run's state with ``O.load``."""
-    latest = CheckpointStore(run_dir).latest()
-    if latest is not None:
-        return os.path.join(latest[1], 'scene.yade.gz')
-    legacy = os.path.join(run_dir, 'checkpoint.yade.gz')
-    if os.path.exists(legacy):
-        return legacy
-    raise FileNotFoundError('%s holds no checkpoint' % run_dir)
 
 
 def has_run(run_dir):
