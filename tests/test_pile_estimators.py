@@ -208,6 +208,19 @@ class TestDip(unittest.TestCase):
                     (pa.central_dip(sy.constructed_floor(dip=0.3, outliers=3, seed=s)[0])['ci95'] for s in range(100)))
         self.assertGreaterEqual(cover, 85)
 
+    def test_single_pile_sizes(self):
+        """The dip figure gives a size with one pile that pile's own interval, and none to a
+        size with several piles (they have the pooled one) or to a pile whose disc was empty."""
+        from yadecd import pile_ensemble_analysis as pea
+        recs = [dict(epoch='relaxed', n_grains=14000, dip_D=0.44, dip_ci95=[0.12, 0.76]),
+                dict(epoch='relaxed', n_grains=5000, dip_D=0.2, dip_ci95=[-0.4, 0.8]),
+                dict(epoch='relaxed', n_grains=5000, dip_D=-0.3, dip_ci95=[-0.9, 0.3]),
+                dict(epoch='feed', n_grains=14000, dip_D=0.5, dip_ci95=[0.1, 0.9]),
+                dict(epoch='relaxed', n_grains=300, dip_D=1.0, dip_ci95=[None, None]),
+                dict(epoch='relaxed', n_grains=1000, dip_D=1.0, dip_ci95=[float('nan'), float('nan')])]
+        self.assertEqual(pea._single_pile_dips(recs, 'relaxed'), [(14000, 0.44, 0.12, 0.76)])
+        self.assertEqual(pea._single_pile_dips(recs, 'feed'), [(14000, 0.5, 0.1, 0.9)])
+
 
 def layered_snapshot(layer_incl_deg, n=4000, seed=0):
     """Grains in the meridian box r in [0.01, 0.05], z in [0, 0.03] whose birth time is constant

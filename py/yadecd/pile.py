@@ -544,6 +544,18 @@ class Clock:
 RUN_FILES = ('run.json', 'progress.csv', 'segments.csv', 'checkpoint.json', 'checkpoint.yade.gz')
 
 
+def _run_json(run_dir, missing):
+    """A run's parameters: its ``run.json`` over DEFAULTS (options added since the run began
+    take their defaults). ``missing`` (with one %s for the directory) is the error without it."""
+    path = os.path.join(run_dir, 'run.json')
+    if not os.path.exists(path):
+        raise FileNotFoundError(missing % run_dir)
+    p = dict(DEFAULTS)
+    with open(path) as f:
+        p.update(json.load(f))
+    return p
+
+
 class PileRun:
     """One pile run in its directory: started, resumed from a checkpoint, advanced, checkpointed.
 
@@ -586,12 +598,7 @@ class PileRun:
         """Continue the run in ``run_dir`` from its newest valid checkpoint (a damaged one is
         reported and the one before it used). ``overrides`` may only change RESUME_MAY_CHANGE;
         a run killed before its first checkpoint starts again from its ``run.json``."""
-        path = os.path.join(run_dir, 'run.json')
-        if not os.path.exists(path):
-            raise FileNotFoundError('nothing to resume in %s: it holds no run.json' % run_dir)
-        p = dict(DEFAULTS)      # options added since the run began take their defaults
-        with open(path) as f:
-            p.update(json.load(f))
+        p = _run_json(run_dir, 'nothing to resume in %s: it holds no run.json')
         given = {k: v for k, v in overrides.items() if v is not None}
         unknown = set(given) - set(DEFAULTS)
         if unknown:
@@ -609,14 +616,7 @@ class PileRun:
             if name.endswith('.tmp') and os.path.isfile(os.path.join(run_dir, name)):
                 os.remove(os.path.join(run_dir, name))
         self = cls(run_dir, p, log)
-        latest = self.store.latest()
-        for m in self.store.messages:
-            log('checkpoint: ' + m)
-        if latest is not None:
-            self._resume_unit(*latest)
-        elif os.path.exists(os.path.join(run_dir, 'checkpoint.json')):
-            self._resume_release_1()
-        else:
+        if not self._load_newest():
             log('no checkpoint yet in %s: starting the run again' % run_dir)
             clear_run(run_dir, keep=('run.json',))
             p['n_paving'] = build_scene(p)
@@ -632,23 +632,24 @@ class PileRun:
         archive when the checkpoint has one written by this plugin, else rebuilds the scene from
         its ``state.npz`` (a carried run), as :meth:`resume` does; ``clock.time()`` is then the
         run's time and ``births`` every grain's birth time."""
-        path = os.path.join(run_dir, 'run.json')
-        if not os.path.exists(path):
-            raise FileNotFoundError('%s holds no pile run: no run.json' % run_dir)
-        p = dict(DEFAULTS)
-        with open(path) as f:
-            p.update(json.load(f))
-        self = cls(run_dir, p, log)
-        latest = self.store.latest()
-        for m in self.store.messages:
-            log('checkpoint: ' + m)
-        if latest is not None:
-            self._resume_unit(*latest)
-        elif os.path.exists(os.path.join(run_dir, 'checkpoint.json')):
-            self._resume_release_1()
-        else:
+        self = cls(run_dir, _run_json(run_dir, '%s holds no pile run: no run.json'), log)
+        if not self._load_newest():
             raise FileNotFoundError('%s holds no valid checkpoint to load' % run_dir)
         return self
+
+    def _load_newest(self):
+        """Load the newest valid checkpoint (a damaged one is reported and the one before it
+        used), or a first-release one, into ``O``; False when the run has none."""
+        latest = self.store.latest()
+        for m in self.store.messages:
+            self.log('checkpoint: ' + m)
+        if latest is not None:
+            self._resume_unit(*latest)
+        elif os.path.exists(os.path.join(self.run_dir, 'checkpoint.json')):
+            self._resume_release_1()
+        else:
+            return False
+        return True
 
     def _restore_counters(self, meta, births, near):
         self.births.update(births)

@@ -328,6 +328,21 @@ def fig_slope(stats, records, path):
     return pf._save(fig, path)
 
 
+def _single_pile_dips(records, epoch):
+    """(grains, D, low, high) of the sizes that have exactly one pile at ``epoch``, with that
+    pile's own 95 % interval (over sectors): no spread over seeds exists for them."""
+    by_size = {}
+    for r in records:
+        if r['epoch'] == epoch and r.get('dip_D') is not None:
+            by_size.setdefault(r['n_grains'], []).append(r)
+    out = []
+    for n, rs in sorted(by_size.items()):
+        ci = rs[0].get('dip_ci95') if len(rs) == 1 else None
+        if ci is not None and len(ci) == 2 and all(c is not None and np.isfinite(c) for c in ci):
+            out.append((n, rs[0]['dip_D'], ci[0], ci[1]))
+    return out
+
+
 def fig_dip(stats, records, path):
     """Central dip D per pile and pooled per size with 95 % intervals; D = 0 is no dip."""
     fig = pf._figure(7, 4.2)
@@ -346,6 +361,11 @@ def fig_dip(stats, records, path):
             xs, ds, los, his = map(np.array, (xs, ds, los, his))
             ax.errorbar(xs, ds, yerr=[ds - los, his - ds], fmt='o', color=colour, capsize=3,
                         label='%s: pooled over seeds, 95%% interval' % epoch)
+        lone = _single_pile_dips(records, epoch)   # a size with one pile: that pile's own interval
+        if lone:
+            x, d, lo, hi = map(np.array, zip(*lone))
+            ax.errorbar(x * (1 + 2 * shift), d, yerr=[d - lo, hi - d], fmt='d', color=colour, mfc='none', capsize=3,
+                        ls='none', elinewidth=0.8, label='%s: one pile, its own 95%% interval (sectors)' % epoch)
     ax.axhline(0, color='k', lw=0.8)
     _size_axis(ax, records)
     ax.set_xlabel('grains')

@@ -2,13 +2,13 @@
 same simulated time, fed by the same protocol (issue 16, done-criterion 1).
 
     scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py --snapshot RUN/snap.npz [--time 0.01] [--warmup 0.002]
-        [--cd-dt 2e-4,1e-3] [--young 1e9,auto] [--md-scale-time] [--out docs/data/cd_md_fullsize.csv]
+        [--cd-dt 2e-4,1e-3] [--cd-tolerance 1e-3,3e-3] [--young 1e9,auto] [--md-scale-time] [--out docs/data/cd_md_fullsize.csv]
 
 Every case restarts from the snapshot (``yadecd.pile.scene_from_snapshot``), keeps feeding grains
 by the protocol's rule (200 per second, the same grains in every case), runs ``--warmup``
 simulated seconds untimed (a snapshot holds no impulses: CD's first steps are cold solves, and MD's
 springs must first take up the load) and then ``--time`` simulated seconds, timed: CD at the
-paper's h = 2e-4 s (and any further ``--cd-dt``, e.g. the faster protocol's 1e-3) and tolerance 1e-3, MD (linear spring and
+paper's h = 2e-4 s (and any further ``--cd-dt``, e.g. the faster protocol's 1e-3) and tolerance 1e-3 (``--cd-tolerance``), MD (linear spring and
 Coulomb slider, ``yadecd.md``, global damping 0.2, O.dt = 0.5 · PWaveTimeStep) at each Young's
 modulus of ``--young``. ``auto`` is the modulus at which MD's mean grain–grain overlap equals CD's:
 a linear contact's overlap under a given load is inversely proportional to E, so it is read off
@@ -48,6 +48,8 @@ ap.add_argument('--md-scale-time', action='store_true', help='run each MD case a
                 'second of a stiff modulus; gravity is not scaled, so such a case does not reach load equilibrium and its '
                 'overlaps are not a match')
 ap.add_argument('--cd-dt', default='2e-4', help='CD time steps [s], comma-separated; the first is the one MD is matched to')
+ap.add_argument('--cd-tolerance', default='1e-3', help="CD tolerances, comma-separated, one per --cd-dt or one for all "
+                "(default the paper's 1e-3, whatever the snapshot's run used)")
 ap.add_argument('--young', default='1e9,auto', help="MD Young's moduli [Pa], comma-separated; 'auto' matches CD's mean overlap")
 ap.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'cd_md_fullsize.csv'))
 args = ap.parse_args()
@@ -64,11 +66,19 @@ except ValueError:
     ap.error('--cd-dt: comma-separated time steps in seconds, got %r' % args.cd_dt)
 if not cd_steps or min(cd_steps) <= 0:
     ap.error('--cd-dt needs at least one positive time step')
+try:
+    cd_tols = [float(x) for x in args.cd_tolerance.split(',') if x.strip()]
+except ValueError:
+    ap.error('--cd-tolerance: comma-separated relative residuals, got %r' % args.cd_tolerance)
+if len(cd_tols) == 1:
+    cd_tols = cd_tols * len(cd_steps)
+if len(cd_tols) != len(cd_steps) or min(cd_tols) <= 0:
+    ap.error('--cd-tolerance: one positive value, or one per --cd-dt (%d), got %r' % (len(cd_steps), args.cd_tolerance))
 
 
-def run_case(method, young=None, dt=None, scale=1.0):
+def run_case(method, young=None, dt=None, tol=None, scale=1.0):
     """Restart from the snapshot, feed and run --time simulated seconds; returns the CSV row."""
-    over = dict(method=method, dt=dt) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
+    over = dict(method=method, dt=dt, tolerance=tol) if method == 'CD' else dict(method='MD', young=young, md_safety=0.5, md_damping=0.2)
     p = pile.scene_from_snapshot(args.snapshot, **over)
     period = pile.creation_period(p['rate'], p['dt'])
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
@@ -89,7 +99,8 @@ def run_case(method, young=None, dt=None, scale=1.0):
     lmax, lmean, loaded = loaded_overlaps(beyond_allowance=(method == 'CD'))
     grains = sum(1 for b in O.bodies if b and b.dynamic and b.shape.__class__.__name__ == 'Sphere')
     row = dict(date=datetime.date.today().isoformat(), snapshot=os.path.relpath(args.snapshot, REPO) if args.snapshot.startswith(REPO) else args.snapshot,
-               method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt, steps=steps,
+               method=method, young_Pa='' if young is None else '%.4g' % young, dt_s='%.4g' % O.dt,
+               tolerance='' if tol is None else '%.4g' % tol, steps=steps,
                sim_time_s=sim, wall_s='%.2f' % wall, wall_per_sim_s='%.1f' % (wall / sim), grains=grains,
                contacts=O.interactions.countReal(), loaded_contacts=loaded,
                loaded_overlap_mean_over_d='%.3e' % lmean, loaded_overlap_max_over_d='%.3e' % lmax,
@@ -99,10 +110,10 @@ def run_case(method, young=None, dt=None, scale=1.0):
 
 
 rows = []
-row, cd_wall, cd_overlap = run_case('CD', dt=cd_steps[0])
+row, cd_wall, cd_overlap = run_case('CD', dt=cd_steps[0], tol=cd_tols[0])
 rows.append(row)
-for dt in cd_steps[1:]:
-    rows.append(run_case('CD', dt=dt)[0])
+for dt, tol in zip(cd_steps[1:], cd_tols[1:]):
+    rows.append(run_case('CD', dt=dt, tol=tol)[0])
 last, first = None, None
 for m in moduli:
     if m == 'auto':
