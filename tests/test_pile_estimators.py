@@ -419,3 +419,46 @@ class TestPaperTable(unittest.TestCase):
         self.assertIn('reciprocity: median \\|n·T′ − n′·T\\|/√(\\|T\\|\\|T′\\|), null |', text)
         self.assertIn('| – [–, –], – |', text)
         self.assertIn('| – (1932 ± 151 dPa) |', text)
+
+
+class TestForceChange(unittest.TestCase):
+    """pa.force_change on constructed pairs of solves with known changes."""
+
+    @staticmethod
+    def solves(n=2000, seed=0):
+        rng = np.random.default_rng(seed)
+        pts = np.column_stack([rng.uniform(-0.05, 0.05, (n, 2)), rng.uniform(0, 0.03, n)])
+        F = rng.uniform(0.5, 1.5, (n, 3))
+        ids = np.arange(n)
+        return dict(c_id1=ids, c_id2=ids + n, c_force=F, c_point=pts)
+
+    def test_few_culprits_and_spread_change(self):
+        a = self.solves()
+        b = {k: v.copy() for k, v in a.items()}
+        b['c_force'][[3, 7]] += [0.0, 0.0, 2.0]        # two contacts change by 2 each, nothing else
+        res = pa.force_change(a, b, top=(1, 2, 10))
+        self.assertEqual(res['matched'], 2000)
+        self.assertAlmostEqual(res['top_share'][1], 0.5, places=12)
+        self.assertAlmostEqual(res['top_share'][2], 1.0, places=12)
+        self.assertAlmostEqual(res['rel_total'], 4.0 / np.linalg.norm(b['c_force'], axis=1).sum(), places=12)
+        c = {k: v.copy() for k, v in a.items()}
+        c['c_force'] = c['c_force'] * 1.01               # every contact by 1 %: shares grow linearly
+        res = pa.force_change(a, c, top=(10, 1000))
+        self.assertAlmostEqual(res['rel_total'], 0.01 / 1.01, places=12)
+        self.assertLess(res['top_share'][10], 0.02)
+        self.assertGreater(res['top_share'][1000], 0.5)
+
+    def test_matching_order_and_location(self):
+        """Contacts listed in another order, some only in one solve; the changed ones all above 1 cm."""
+        a = self.solves(seed=1)
+        perm = np.random.default_rng(2).permutation(2000)[:1900]   # b lists 1900 of them, shuffled
+        b = {k: v[perm].copy() for k, v in a.items()}
+        high = np.nonzero(b['c_point'][:, 2] > 0.01)[0]     # about 1270 of 1900: more than the 1000 reported
+        b['c_force'][high] *= 1.5
+        res = pa.force_change(a, b)
+        self.assertEqual((res['matched'], res['only_a'], res['only_b']), (1900, 100, 0))
+        self.assertGreater(len(high), 1000)
+        self.assertGreater(res['worst_z_m'][0], 0.01)
+        self.assertLess(res['all_z_m'][0], 0.01)
+        with self.assertRaisesRegex(ValueError, 'share no contact'):
+            pa.force_change(a, dict(b, c_id1=b['c_id1'] + 10 ** 6))

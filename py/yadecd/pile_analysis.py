@@ -1270,3 +1270,38 @@ def fabric_tensor(normals):
     D = F - np.eye(3) / 3
     return {'fabric': F, 'fabric_eigenvalues': np.sort(np.linalg.eigvalsh(F))[::-1],
             'anisotropy': float(math.sqrt(1.5 * (D * D).sum())), 'fabric_zz': float(F[2, 2])}
+
+
+def force_change(a, b, top=(10, 100, 1000, 5000)):
+    """How the contact forces of two solves of the same step differ, and where (the drift of an
+    unconverged solve: ``scripts/bench/force_drift.py``).
+
+    Contacts are matched by their body pair; the change of one is the norm of its force
+    difference. Returns the contacts matched and unmatched, the relative total change
+    Σ|ΔF| / Σ|F_b|, the share of Σ|ΔF| carried by the ``top`` contacts that change most (a
+    change spread over the pile gives small shares, a few culprits large ones), the largest
+    single share, and quartiles of the contact points' height and distance to the axis for the
+    1000 that change most (or all, if fewer) against all matched contacts [m].
+
+    :param a, b: snapshots (dicts with ``c_id1``, ``c_id2``, ``c_force``, ``c_point``).
+    """
+    def index(s):
+        return {(int(i), int(j)): k for k, (i, j) in enumerate(zip(s['c_id1'], s['c_id2']))}
+    ka, kb = index(a), index(b)
+    common = [k for k in ka if k in kb]
+    if not common:
+        raise ValueError('force_change: the two solves share no contact')
+    ia, ib = np.array([ka[k] for k in common]), np.array([kb[k] for k in common])
+    d = np.linalg.norm(np.asarray(a['c_force'])[ia] - np.asarray(b['c_force'])[ib], axis=1)
+    total, mag = d.sum(), np.linalg.norm(np.asarray(b['c_force'])[ib], axis=1).sum()
+    order = np.argsort(-d, kind='stable')
+    shares = np.cumsum(d[order]) / total if total > 0 else np.zeros(len(d))
+    pts = np.asarray(a['c_point'])[ia]
+    r, z = np.hypot(pts[:, 0], pts[:, 1]), pts[:, 2]
+    worst = order[:min(1000, len(order))]
+    quart = lambda x: [float(v) for v in np.percentile(x, [25, 50, 75])]  # noqa: E731
+    return dict(matched=len(common), only_a=len(ka) - len(common), only_b=len(kb) - len(common),
+                rel_total=float(total / mag) if mag > 0 else float('nan'),
+                top_share={int(n): float(shares[min(n, len(d)) - 1]) for n in top},
+                largest_share=float(shares[0]),
+                worst_z_m=quart(z[worst]), worst_r_m=quart(r[worst]), all_z_m=quart(z), all_r_m=quart(r))
