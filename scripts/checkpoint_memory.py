@@ -20,7 +20,8 @@ import time
 import numpy as np
 
 from yade import O
-from yadecd import pile
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
+from yadecd import pile  # noqa: E402
 
 
 def rss_mb():

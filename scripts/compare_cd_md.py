@@ -22,11 +22,12 @@ docs/figures).
 import argparse
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 # inside yade, __file__ is yade's executable: take the script's path from argv
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))
-sys.path.insert(0, os.path.join(REPO, 'py'))   # this repository's yadecd, ahead of the installed copy
-from yadecd import compare, compare_sweep  # noqa: E402
+from yadecd import compare  # noqa: E402
+from yadecd.compare import sweep as compare_sweep  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
 ap.add_argument('--quick', action='store_true', help='tiny subset (< 1 min) into out/compare_quick')

@@ -15,10 +15,10 @@ to docs/data and docs/figures with --docs.
 import argparse
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))  # inside YADE __file__ is the yade executable
-sys.path.insert(0, os.path.join(REPO, 'py'))   # this repository's yadecd, ahead of the installed copy
-from yadecd import compare_pile  # noqa: E402
+from yadecd.compare import pile as compare_pile  # noqa: E402
 
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--grains', type=int, default=300)

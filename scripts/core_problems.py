@@ -16,9 +16,10 @@ import os
 import sys
 
 from yade import O
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 import yadecd
-from yadecd import scenes
+from yadecd import scenes  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))
 ap = argparse.ArgumentParser(prog='core_problems.py', description=__doc__.split('\n')[0])

@@ -10,8 +10,9 @@ import os
 import subprocess
 import sys
 import time
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-from yadecd import pile
+from yadecd import pile  # noqa: E402
 
 ap = argparse.ArgumentParser(prog='demo.py')
 ap.add_argument('--out', default='out/demo-pile')

@@ -15,9 +15,10 @@ import os
 import sys
 
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py'))
-from yadecd import pile_analysis as pa, synthetic as sy  # noqa: E402
+from yadecd import analysis as pa  # noqa: E402
+from yadecd.testing import synthetic as sy  # noqa: E402
 
 FEATURES = [('plain cone', {}), ('rounded cap (1 cm)', dict(cap_radius=0.01)), ('sparse axis', dict(sparse_axis=True)),
             ('foot (3 cm)', dict(foot=True)), ('12 stray grains', dict(strays=12)),

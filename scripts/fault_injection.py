@@ -22,10 +22,10 @@ import sys
 import time
 
 import numpy as np
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(REPO, 'py'))   # the repository's yadecd (imports without YADE)
-from yadecd import faults  # noqa: E402
+from yadecd.testing import faults  # noqa: E402
 
 
 def main(argv=None):

@@ -11,8 +11,10 @@ import json
 import sys
 
 import numpy as np
+import os
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-from yadecd import rolloff
+from yadecd.pile import rolloff  # noqa: E402
 
 ap = argparse.ArgumentParser(prog='paving_rolloff.py')
 ap.add_argument('--per-size', type=int, default=20)

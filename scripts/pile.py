@@ -21,8 +21,9 @@ import errno
 import os
 import signal
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-from yadecd import pile
+from yadecd import pile  # noqa: E402
 
 parser = argparse.ArgumentParser(prog='pile.py', description=__doc__.split('\n')[0])
 parser.add_argument('--out', default='out/pile', help='run directory (created)')
@@ -56,7 +57,7 @@ if args.branch_from and (args.resume or args.overwrite):
     parser.error('--branch-from starts a new run directory: it excludes --resume and --overwrite')
 try:
     p = pile.run(out, resume=args.resume, overwrite=args.overwrite, branch_from=args.branch_from, **params)
-except (ValueError, OSError, pile.CheckpointError, pile.runstate.RunStateError) as e:
+except (ValueError, OSError, pile.CheckpointError, pile.RunStateError) as e:
     # every check of pile.run happens before the first step; a full disk stops a run at its next write
     message = str(e)
     if isinstance(e, OSError) and e.errno == errno.ENOSPC:

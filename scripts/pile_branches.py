@@ -13,11 +13,13 @@ import argparse
 import json
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(REPO, 'py'))
-from yadecd import ensemble as ens, pile_analysis as pa, protocol  # noqa: E402
-from yadecd.pile_ensemble_analysis import run_record  # noqa: E402
+from yadecd import analysis as pa  # noqa: E402
+from yadecd.analysis import protocols as protocol  # noqa: E402
+from yadecd.pile.protocol import feed_time  # noqa: E402
+from yadecd.analysis.ensemble import run_record  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('run')
@@ -49,7 +51,7 @@ if a.times:
     shared = wanted
 if not shared:
     ap.error('the two runs share no snapshot after the branch point t = %.3f s' % t_branch)
-t_feed = ens.feed_time(int(bp['n_grains']), bp.get('rate', ens.RATE_DEFAULT), bp.get('dt', ens.DT_DEFAULT))
+t_feed = feed_time(int(bp['n_grains']), bp.get('rate'), bp.get('dt'))
 params = pa.run_parameters(a.branch)
 rows, records = [], []
 for t in shared:

@@ -12,9 +12,9 @@ directory is the same command. Needs no YADE and no numpy.
 import argparse
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py'))
-from yadecd.carry import carry  # noqa: E402
+from yadecd.runs.carry import carry  # noqa: E402
 
 
 def main(argv=None):

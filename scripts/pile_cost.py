@@ -12,14 +12,14 @@ only (Debian's /usr/bin/python3 or YADE's).
 import argparse
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'py'))
 
 
 def figure(rows, segments, path, title):
-    from yadecd import pile_figures as pf
+    from yadecd.analysis import figures as pf
     import numpy as np
-    fig = pf._figure(9, 6.5)
+    fig = pf.new_figure(9, 6.5)
     ax, bx = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
     for seg in sorted({r['segment'] for r in rows}):
         sel = [r for r in rows if r['segment'] == seg]
@@ -39,7 +39,7 @@ def figure(rows, segments, path, title):
         a.legend(fontsize=6)
     bx.text(0.01, 0.97, 'wall time / Σ steps × contacts × sweeps (sweeps sampled once per progress line)',
             transform=bx.transAxes, fontsize=6, va='top')
-    return pf._save(fig, path)
+    return pf.save_figure(fig, path)
 
 
 def main(argv=None):
@@ -53,8 +53,9 @@ def main(argv=None):
     progress = os.path.join(args.run, 'progress.csv')
     if not os.path.exists(progress):
         p.error('%s holds no progress.csv' % args.run)
-    from yadecd import benchio, runcost
-    from yadecd import pile_analysis as pa
+    from yadecd.io import write_csv
+    from yadecd.runs import cost as runcost
+    from yadecd import analysis as pa
     params = pa.run_parameters(args.run)
     dt = params.get('dt')
     if not dt:
@@ -72,7 +73,7 @@ def main(argv=None):
     for k, s in enumerate(segments):
         print('segment %d: from t = %.3f s, %s thread(s), %s, %s' % (k, s['t_start_s'], s['threads'], s['host'], s['cpu']))
     out = args.out or args.run
-    benchio.write_csv(os.path.join(out, 'cost.csv'), rows)
+    write_csv(os.path.join(out, 'cost.csv'), rows)
     path = figure(rows, segments, os.path.join(out, 'cost.png'),
                   '%s: %d grains, h = %g s' % (os.path.basename(os.path.abspath(args.run)), params.get('n_grains', 0), dt))
     print('wrote %s' % path)

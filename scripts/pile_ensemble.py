@@ -16,9 +16,9 @@ the ensemble statistics (means, spreads, 95 % intervals) and figures. Needs no Y
 import argparse
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
-sys.path.insert(0, os.path.join(REPO, 'py'))   # the repository's yadecd (imports without YADE)
 
 
 def main(argv=None):
@@ -47,7 +47,7 @@ def main(argv=None):
                    help='directory of stored per-run records (e.g. docs/data/ensemble_runs) for runs not in OUT')
     args = p.parse_args(argv)
 
-    from yadecd import ensemble as ens
+    from yadecd.runs import ensemble as ens
     if args.cmd == 'run':
         try:
             sizes = [int(x) for x in args.sizes.split(',') if x.strip()]
@@ -73,7 +73,7 @@ def main(argv=None):
     if args.cmd == 'status':
         print('\n'.join(ens.status_lines(args.out)))
         return 0
-    from yadecd import pile_ensemble_analysis as stats
+    from yadecd.analysis import ensemble as stats
     out = args.figures or os.path.join(args.out, 'analysis')
     summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
                                      records_from=args.records)

@@ -12,19 +12,7 @@ imports without YADE; this script uses the repository's copy, py/yadecd).
 import argparse
 import os
 import sys
-
-
-def _use_repo_package():
-    """Put the repository's py/ first on sys.path (inside YADE ``__file__`` may be YADE's
-    executable, so sys.argv[0] is tried as well)."""
-    for candidate in (globals().get('__file__'), sys.argv[0] if sys.argv else None):
-        if not candidate:
-            continue
-        py = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(candidate)), '..', 'py'))
-        if os.path.exists(os.path.join(py, 'yadecd', 'pile_figures.py')):
-            sys.path.insert(0, py)
-            return
-    raise SystemExit('cannot find py/yadecd/pile_figures.py next to this script')
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 
 def parse(argv):
@@ -41,8 +29,7 @@ def parse(argv):
 
 def main(argv=None):
     args = parse(sys.argv[1:] if argv is None else argv)
-    _use_repo_package()
-    from yadecd import pile_figures as figures
+    from yadecd.analysis import report as figures
     base = args.run if os.path.isdir(args.run) else os.path.dirname(os.path.abspath(args.run))
     out = args.out or os.path.join(base, 'figures')
     s = figures.analyse(args.run, out, epoch=args.epoch, fossil=args.fossil,

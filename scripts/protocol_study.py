@@ -18,13 +18,14 @@ import argparse
 import json
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
-sys.path.insert(0, os.path.join(REPO, 'py'))
 
 
 def main(argv=None):
-    from yadecd import ensemble as ens, protocol, pile_ensemble_analysis as pea
+    from yadecd.runs import ensemble as ens
+    from yadecd.analysis import protocols as protocol, ensemble as pea
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     sub = p.add_subparsers(dest='cmd', required=True)
     r = sub.add_parser('run')

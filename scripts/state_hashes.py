@@ -15,7 +15,8 @@ import sys
 import time
 
 from yade import O
-from yadecd import statehash
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
+from yadecd.testing import statehash  # noqa: E402
 
 ap = argparse.ArgumentParser(prog='state_hashes.py', description=__doc__.split('\n')[0])
 ap.add_argument('--write', default=None, help='JSON file to add this thread count\'s hashes to')

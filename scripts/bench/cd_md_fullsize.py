@@ -30,14 +30,14 @@ import datetime
 import os
 import sys
 import time
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
-sys.path.insert(0, os.path.join(REPO, 'py'))
 import numpy as np  # noqa: E402
 from yade import O  # noqa: E402
 from yadecd import pile  # noqa: E402
-from yadecd.compare_pile import loaded_overlaps, overlaps  # noqa: E402
-from yadecd.benchio import write_csv  # noqa: E402
+from yadecd.compare.pile import loaded_overlaps, overlaps  # noqa: E402
+from yadecd.io import write_csv  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('--snapshot', required=True, help='a pile snapshot .npz (its run.json beside it gives the protocol)')

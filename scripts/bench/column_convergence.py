@@ -12,9 +12,11 @@ import sys
 import time
 
 from yade import O
+import os
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 import yadecd
-from yadecd import scenes
-from yadecd.benchio import write_csv
+from yadecd import scenes  # noqa: E402
+from yadecd.io import write_csv  # noqa: E402
 
 ap = argparse.ArgumentParser()
 ap.add_argument('--n', type=int, nargs='+', default=[10, 40, 160])

@@ -10,8 +10,10 @@ about 40 h here to reach 14 000 grains; this is a stand-in state for the solver,
 """
 import argparse
 import sys
+import os
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-from yadecd import pile
+from yadecd import pile  # noqa: E402
 
 parser = argparse.ArgumentParser(prog='cone_pile.py', description=__doc__.split('\n')[0])
 parser.add_argument('--out', required=True, help='run directory (created)')

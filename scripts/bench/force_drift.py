@@ -20,7 +20,8 @@ import tempfile
 import time
 
 from yade import O
-from yadecd import pile, pile_analysis as pa
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
+from yadecd import pile, analysis as pa  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('run_dir')

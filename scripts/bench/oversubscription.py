@@ -20,10 +20,10 @@ import statistics
 import subprocess
 import sys
 import time
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.join(REPO, 'py'))
-from yadecd.benchio import write_csv  # noqa: E402
+from yadecd.io import write_csv  # noqa: E402
 ALWAYS = ['--parallel-min-contacts', '0']     # threads at any size (the engine before parallelMinContacts)
 SETTINGS = [  # name, threads, busy competitor, extra environment, cd_core_bench options
     ('1 thread, alone', 1, False, {}, []),

@@ -15,10 +15,11 @@ import os
 import subprocess
 import sys
 import tempfile
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.join(REPO, 'py'))
-from yadecd.benchio import sweeps_to, write_csv  # noqa: E402
+from yadecd.analysis.stats import sweeps_to  # noqa: E402
+from yadecd.io import write_csv  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('steps', nargs='+', help='problem files (save_step.py)')

@@ -14,12 +14,12 @@ import glob
 import json
 import os
 import sys
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))
-sys.path.insert(0, os.path.join(REPO, 'py'))
 import numpy as np  # noqa: E402
-from yadecd import pile, pile_analysis as pa  # noqa: E402
-from yadecd.ensemble import parse_seeds  # noqa: E402
+from yadecd import pile, analysis as pa  # noqa: E402
+from yadecd.runs.ensemble import parse_seeds  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 ap.add_argument('--seeds', default='3-10')

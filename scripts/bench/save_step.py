@@ -26,9 +26,10 @@ import tempfile
 import numpy as np
 
 from yade import O
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 import yadecd
-from yadecd import pile
+from yadecd import pile  # noqa: E402
 
 ap = argparse.ArgumentParser(prog='save_step.py', description=__doc__.split('\n')[0])
 ap.add_argument('source', help='a snapshot (.npz) or a run directory')
@@ -69,7 +70,7 @@ def report(path, cd):
 
 
 if from_run:
-    from yadecd.carry import carry
+    from yadecd.runs.carry import carry
     scratch = tempfile.mkdtemp(prefix='save_step_')
     try:
         copy = os.path.join(scratch, 'run')   # the run's portable part; the run itself is never touched

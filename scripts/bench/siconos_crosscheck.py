@@ -20,8 +20,10 @@ import sys
 import numpy as np
 
 from yade import O
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 import yadecd
-from yadecd import scenes, fclib, pile
+from yadecd import scenes, pile  # noqa: E402
+from yadecd.export import fclib  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))  # inside YADE __file__ is the yade executable
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])

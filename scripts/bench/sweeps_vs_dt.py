@@ -22,9 +22,10 @@ import time
 import numpy as np
 
 from yade import O
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
 import yadecd
-from yadecd import benchio, pile
+from yadecd import io as benchio, pile  # noqa: E402
 
 ap = argparse.ArgumentParser(prog='sweeps_vs_dt.py', description=__doc__.split('\n')[0])
 ap.add_argument('snapshot')

@@ -1,0 +1,160 @@
+"""The pile protocol: every parameter of a run with its default (the paper's values), the one
+validation of a parameter set, and the schedule derived from it (feed, snapshots, disk needed).
+
+Imports without YADE (the ensemble driver reads it under plain Python).
+"""
+
+import math
+import numpy as np
+
+
+
+DEFAULTS = dict(
+    n_grains=14000,      # grains to create
+    d_min=0.0025,        # m   (0.25 cm)
+    d_max=0.0050,        # m   (0.50 cm)
+    rho=1000.0,          # kg/m³
+    mu=0.4,
+    en=0.0,
+    g=9.81,              # m/s²
+    dt=2e-4,             # s
+    rate=200.0,          # grains per second
+    feed_radius=0.008,   # m   (0.8 cm)
+    floor_radius=0.0,    # m; 0: sized from n_grains (1.4 × the expected base radius)
+    relax=0.0,           # s of relaxation after the last grain
+    seed=1,
+    epochs='',           # comma-separated snapshot times [s]; '' = every snap_every
+    snap_every=2.0,      # s between snapshots when epochs is empty
+    checkpoint_every=60.0,  # wall-clock seconds between checkpoints
+    tolerance=1e-3,      # Gauss–Seidel relative residual (see docs/pile.md for its effect on forces)
+    max_iter=2000,
+    relaxation=1.0,      # Gauss–Seidel over-relaxation ω (with momentum off, 1.8 halves the sweeps on piles)
+    momentum=True,       # Nesterov momentum (piles: 3.9–5.5× fewer sweeps, 1.8–2.5× faster steps; docs/performance.md)
+    correction_momentum=False,  # momentum in the position correction too: 4x fewer correction sweeps; opt-in until checked on whole piles (docs/performance.md)
+    sweep_order=5,       # Gauss–Seidel order: 5 slabs (parallel with yade -j2, same results for any thread count), 1 height
+    parallel_min_contacts=10000,  # fewer contacts: sweeps on one thread (same results; 2 threads gain nothing there and collapse beside another busy process)
+    vtk=False,           # also export VTK files (ParaView) at snapshots
+    stop_time=0.0,       # s; > 0: checkpoint and stop there (continue later with resume)
+    method='CD',         # 'CD', or 'MD': YADE's soft contacts (linear spring–slider) on the same protocol
+    young=1e7,           # Pa; MD only (contact stiffness kn = young·r)
+    md_safety=0.5,       # MD only: O.dt = md_safety·PWaveTimeStep() (replaces dt)
+    md_damping=0.2,      # MD only: Cundall's non-viscous damping, as YADE deposition scripts use
+)
+
+
+def expected_base_radius(n, d_min, d_max, slope_deg=26.0, packing=0.6):
+    """Base radius [m] of a cone of ``n`` grains at the given slope and packing fraction."""
+    v_grain = math.pi / 6 * (d_max ** 4 - d_min ** 4) / (4 * (d_max - d_min))  # mean of d³ times π/6
+    volume = n * v_grain / packing
+    return (3 * volume / (math.pi * math.tan(math.radians(slope_deg)))) ** (1 / 3)
+
+
+def feed_end_time(p):
+    """Simulated time [s] at which the run ``p`` creates its last grain (:func:`feed_time`)."""
+    return feed_time(p['n_grains'], p['rate'], p['dt'])
+
+
+def snapshot_times(p, t_end):
+    """Times [s] of a run's snapshots: its epochs, or every snap_every up to t_end (the last at t_end)
+    and, when the run relaxes after the feed, the end of the feed too (the analyses' "end of feed"
+    epoch, which the regular times need not hit: 25 s for 5000 grains, snap_every 2 s)."""
+    if p['epochs']:
+        return epoch_list(p['epochs'])
+    k = max(1, int(round(t_end / p['snap_every'])))
+    times = [t_end * (i + 1) / k for i in range(k)]
+    t_feed = feed_end_time(p)
+    if t_feed < t_end - 0.5 * p['dt'] and min(abs(t - t_feed) for t in times) > 0.5 * p['dt']:
+        times = sorted(times + [t_feed])
+    return times
+
+
+# Options a resumed run may be given anew; any other option must equal the run's own.
+RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk', 'parallel_min_contacts')
+
+
+# what a branch (:func:`branch`) may change besides: how precisely each step is solved, not the
+# pile's physics or protocol (grains, feed, time step, friction)
+BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_momentum')
+
+
+def epoch_list(epochs):
+    try:
+        return sorted(float(t) for t in str(epochs).split(',') if t.strip())
+    except ValueError:
+        raise ValueError("epochs must be comma-separated times in seconds, not %r" % (epochs,)) from None
+
+
+def check_params(p):
+    """Raise ValueError naming the first bad parameter of a pile run (before any work is done)."""
+    unknown = set(p) - set(DEFAULTS)
+    if unknown:
+        raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
+    for key, default in DEFAULTS.items():
+        v = p[key]
+        if isinstance(default, bool):
+            ok = isinstance(v, (bool, np.bool_))
+        elif isinstance(default, (int, float)):
+            ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
+        else:
+            ok = isinstance(v, str)
+        if not ok:
+            raise ValueError('pile parameter %s must be a %s, not %r' % (key, type(default).__name__, v))
+    rules = [
+        ('n_grains', p['n_grains'] >= 1 and int(p['n_grains']) == p['n_grains'], 'a positive integer'),
+        ('d_min', p['d_min'] > 0, 'positive [m]'),
+        ('d_max', p['d_max'] >= p['d_min'], '>= d_min [m]'),
+        ('rho', p['rho'] > 0, 'positive [kg/m³]'),
+        ('mu', p['mu'] >= 0, '>= 0'),
+        ('en', 0 <= p['en'] <= 1, 'in [0, 1]'),
+        ('g', p['g'] > 0, 'positive [m/s²]'),
+        ('dt', p['dt'] > 0, 'positive [s]'),
+        ('rate', p['rate'] > 0, 'positive [grains/s]'),
+        ('feed_radius', p['feed_radius'] >= 0, '>= 0 [m]'),
+        ('floor_radius', p['floor_radius'] >= 0, '>= 0 [m] (0: sized from n_grains)'),
+        ('relax', p['relax'] >= 0, '>= 0 [s]'),
+        ('snap_every', p['snap_every'] > 0, 'positive [s]'),
+        ('checkpoint_every', p['checkpoint_every'] > 0, 'positive [s of wall time]'),
+        ('tolerance', 0 < p['tolerance'] < 1, 'in (0, 1)'),
+        ('max_iter', p['max_iter'] >= 1, '>= 1'),
+        ('relaxation', 0 < p['relaxation'] < 2, 'in (0, 2)'),
+        ('sweep_order', p['sweep_order'] in (0, 1, 2, 3, 4, 5), 'one of 0–5'),
+        ('parallel_min_contacts', p['parallel_min_contacts'] >= 0 and int(p['parallel_min_contacts']) == p['parallel_min_contacts'],
+         'an integer >= 0 (0: threads at any size)'),
+        ('stop_time', p['stop_time'] >= 0, '>= 0 [s]'),
+        ('method', p['method'] in ('CD', 'MD'), "'CD' or 'MD'"),
+        ('young', p['young'] > 0, 'positive [Pa]'),
+        ('md_safety', 0 < p['md_safety'] <= 1, 'in (0, 1]'),
+        ('md_damping', 0 <= p['md_damping'] < 1, 'in [0, 1)'),
+    ]
+    for key, ok, what in rules:
+        if not ok:
+            raise ValueError('pile parameter %s must be %s (got %r)' % (key, what, p[key]))
+    if any(t <= 0 for t in epoch_list(p['epochs'])):
+        raise ValueError('pile parameter epochs must hold positive times (got %r)' % (p['epochs'],))
+
+
+def disk_need(p):
+    """Bytes a run needs in its directory, estimated from its size: the checkpoints kept (three
+    units at once while one is written; 1000 B per body each, measured 480 on a 100-grain pile,
+    whose grains have fewer contacts than a large pile's) and the snapshots (400 B per body each,
+    measured 125)."""
+    floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
+    d_mean = 0.5 * (p['d_min'] + p['d_max'])
+    bodies = p['n_grains'] + 0.55 * (floor_radius / (0.5 * d_mean)) ** 2
+    t_end = feed_end_time(p) + p['relax']
+    n_snaps = len(snapshot_times(p, t_end))
+    return int(bodies * (3 * 1000 + n_snaps * 400) + 1e6)
+
+
+def creation_period(rate=None, dt=None):
+    """Steps between two grain creations: round(1/(rate·dt)), at least 1 (defaults: the
+    protocol's rate and time step)."""
+    rate = DEFAULTS['rate'] if rate is None else rate
+    dt = DEFAULTS['dt'] if dt is None else dt
+    return max(1, int(round(1.0 / (rate * dt))))
+
+
+def feed_time(n_grains, rate=None, dt=None):
+    """Simulated time [s] at which the last grain is created (one every :func:`creation_period` steps)."""
+    dt = DEFAULTS['dt'] if dt is None else dt
+    return n_grains * creation_period(rate, dt) * dt

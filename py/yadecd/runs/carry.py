@@ -1,0 +1,139 @@
+"""Carry a pile run between machines: its portable part, small enough to commit.
+
+A long pile (the 14 000-grain one takes many hours) outlives the machine it started on when the
+machine is reset between sessions. :func:`carry` copies what a resume needs and what the
+analyses read, and nothing machine-specific:
+
+* ``run.json`` (the parameters), ``progress.csv`` (with the run's wall time so far) and
+  ``segments.csv`` (where and when each segment ran, :mod:`yadecd.runcost`);
+* the snapshots ``snap_<t>.npz`` at multiples of ``snap_every`` seconds (all when ``None``),
+  always with the newest one and the one at the end of the feed (``n_grains / rate`` in run.json:
+  the state the deposit analyses read);
+* the newest *valid* checkpoint unit, reduced to its ``state.npz`` (the layout-independent
+  state, :mod:`yadecd.runstate`); YADE's archive ``scene.yade.gz`` is left out: it is the larger
+  file and only loads into the very plugin build that wrote it.
+
+The copy is a run directory: ``pile.py --out DEST --resume`` continues it through the state.npz
+path (the same physical state; not bit-identical, as after any plugin change). Carrying the copy
+back to a working directory is the same operation. The destination is written under a
+temporary name and swapped in whole, so an interrupted carry leaves the previous copy intact;
+``CARRIED.json`` in it records the source, the checkpoint, and what was left out.
+
+Pure Python (no YADE, no numpy): it runs under any interpreter.
+"""
+import json
+import os
+import shutil
+import time
+
+from .checkpoint import POINTER, CheckpointError, CheckpointStore, sha256
+
+RUN_FILES = ('run.json', 'progress.csv', 'segments.csv')
+SNAP_PREFIX, SNAP_SUFFIX = 'snap_', '.npz'
+RECORD = 'CARRIED.json'
+
+
+def snapshot_time(name):
+    """Time [s] in a snapshot's file name ``snap_<t>.npz``, or None for any other name."""
+    if not (name.startswith(SNAP_PREFIX) and name.endswith(SNAP_SUFFIX)):
+        return None
+    try:
+        return float(name[len(SNAP_PREFIX):-len(SNAP_SUFFIX)])
+    except ValueError:
+        return None
+
+
+def chosen_snapshots(names, snap_every=None, also=(), tol=1e-6):
+    """The snapshot file names to carry, in time order: those at multiples of ``snap_every`` [s]
+    (all when None), those at the times in ``also`` [s] and the newest one."""
+    snaps = sorted((t, n) for n, t in ((n, snapshot_time(n)) for n in names) if t is not None)
+    if snap_every is None:
+        return [n for _, n in snaps]
+    if not snap_every > 0:
+        raise ValueError('snap_every must be a positive time in seconds (got %r)' % (snap_every,))
+    keep = [n for t, n in snaps if abs(t / snap_every - round(t / snap_every)) * snap_every < tol
+            or any(abs(t - a) < tol for a in also) or n == snaps[-1][1]]
+    return keep
+
+
+def feed_end(run):
+    """End of the feed [s] of a pile run's parameters (``n_grains / rate``), or None when run.json
+    does not give both."""
+    try:
+        return float(run['n_grains']) / float(run['rate'])
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
+
+
+def carry(src, dest, snap_every=None, log=print):
+    """Copy the portable part of the pile run in ``src`` to ``dest`` (replaced whole if it exists).
+
+    :returns: the record written to ``dest/CARRIED.json``.
+    :raises FileNotFoundError: ``src`` holds no run.json.
+    :raises CheckpointError: ``src`` has checkpoints but none is valid, or none at all (nothing
+        to resume from: carry the run after its first checkpoint).
+    """
+    src, dest = os.path.abspath(src), os.path.abspath(dest)
+    if src == dest:
+        raise ValueError('carry: source and destination are the same directory (%s)' % src)
+    if not os.path.exists(os.path.join(src, 'run.json')):
+        raise FileNotFoundError('carry: %s holds no pile run (no run.json)' % src)
+    store = CheckpointStore(src)
+    latest = store.latest()
+    for m in store.messages:
+        log('carry: ' + m)
+    if latest is None:
+        raise CheckpointError('carry: %s has no checkpoint yet; nothing would resume from the copy' % src)
+    seq, unit, info = latest
+    if 'state.npz' not in info.get('files', {}):
+        raise CheckpointError('carry: checkpoint %d of %s holds no state.npz' % (seq, src))
+
+    tmp = dest + '.carry-tmp'
+    shutil.rmtree(tmp, ignore_errors=True)
+    os.makedirs(tmp)
+    for name in RUN_FILES:
+        if os.path.exists(os.path.join(src, name)):
+            shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
+    with open(os.path.join(src, 'run.json')) as f:
+        end = feed_end(json.load(f))
+    snaps = chosen_snapshots(os.listdir(src), snap_every, also=() if end is None else (end,))
+    for name in snaps:
+        shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
+
+    # the checkpoint unit, reduced to state.npz; its digest is checked again after the copy
+    unit_dest = os.path.join(tmp, 'ckpt', '%06d' % seq)
+    os.makedirs(unit_dest)
+    shutil.copy2(os.path.join(unit, 'state.npz'), os.path.join(unit_dest, 'state.npz'))
+    if sha256(os.path.join(unit_dest, 'state.npz')) != info['files']['state.npz']:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise CheckpointError('carry: state.npz of checkpoint %d changed while it was copied' % seq)
+    dropped = sorted(set(info['files']) - {'state.npz'})
+    reduced = dict(info, files={'state.npz': info['files']['state.npz']})
+    with open(os.path.join(unit_dest, 'meta.json'), 'w') as f:
+        json.dump(reduced, f, indent=1, sort_keys=True)
+    with open(os.path.join(tmp, 'ckpt', POINTER), 'w') as f:
+        json.dump({'current': seq, 'previous': None}, f)
+
+    all_snaps = [n for n in os.listdir(src) if snapshot_time(n) is not None]
+    record = {'source': src, 'carried_unix': time.time(), 'checkpoint': seq,
+              'time': info['meta'].get('time'), 'iter': info['meta'].get('iter'),
+              'wall_s': info['meta'].get('wall_s'), 'snapshots': snaps,
+              'snapshots_left_out': sorted(set(all_snaps) - set(snaps)), 'checkpoint_files_left_out': dropped}
+    with open(os.path.join(tmp, RECORD), 'w') as f:
+        json.dump(record, f, indent=1)
+    copied = CheckpointStore(tmp).latest()
+    if copied is None or copied[0] != seq:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise CheckpointError('carry: the copied checkpoint does not verify in %s' % tmp)
+
+    old = dest + '.carry-old'
+    shutil.rmtree(old, ignore_errors=True)
+    if os.path.exists(dest):
+        os.replace(dest, old)
+    os.replace(tmp, dest)
+    shutil.rmtree(old, ignore_errors=True)
+    when = '%.3f' % record['time'] if isinstance(record['time'], (int, float)) else '?'
+    log('carried %s -> %s: checkpoint %d at t=%s s, %d snapshots (%d left out)%s'
+        % (src, dest, seq, when, len(snaps), len(record['snapshots_left_out']),
+           ', without ' + ', '.join(dropped) if dropped else ''))
+    return record

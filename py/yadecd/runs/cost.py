@@ -1,0 +1,95 @@
+"""What a pile run's wall time went into, from its own records: ``progress.csv`` (simulated time,
+grains, contacts, sweeps, residual, the run's wall time) and ``segments.csv`` (one line per
+segment: when and where it ran). Pure numpy: no YADE.
+
+A long run is carried between machines and sessions, and the machines differ: the same pile
+state cost 52–77 ns per contact-sweep all in on one host and 170–200 on another. Its total wall
+time only means something with that cost beside it, so :func:`cost_windows` gives, per window of
+simulated time and per segment, the wall time per simulated second and the **all-in cost per
+contact-sweep**: the window's wall time over Σ steps × contacts × sweeps. Each progress line
+samples the sweeps of one step only (steps vary 300–1300 sweeps), so the estimate is a ratio of
+sums over many lines, not a per-line number; a window of fewer than ``min_lines`` lines is not
+reported.
+"""
+import csv
+import os
+import time
+
+import numpy as np
+
+from ..io import host_description
+
+SEGMENT_FIELDS = ('started_unix', 't_start_s', 'wall_before_s', 'threads', 'host', 'cpu')
+
+
+def append_segment(run_dir, t_start, wall_before, threads):
+    """Record the start of a run segment (a start or a resume) in ``run_dir/segments.csv``."""
+    path = os.path.join(run_dir, 'segments.csv')
+    new = not os.path.exists(path) or os.path.getsize(path) == 0
+    host, cpu = host_description()
+    with open(path, 'a', newline='') as f:
+        w = csv.writer(f)
+        if new:
+            w.writerow(SEGMENT_FIELDS)
+        w.writerow(['%.1f' % time.time(), '%.6f' % t_start, '%.1f' % wall_before, threads, host, cpu])
+    return path
+
+
+def read_progress(path):
+    """``progress.csv`` as a dict of float arrays (time_s, grains, contacts, sweeps, residual, wall_s)."""
+    a = np.genfromtxt(path, delimiter=',', names=True, ndmin=1)
+    return {k: np.asarray(a[k], dtype=float) for k in a.dtype.names}
+
+
+def read_segments(path):
+    """``segments.csv`` as a list of dicts in the order of their simulated start time (the order
+    :func:`cost_windows` numbers them in; a resume from an older checkpoint after a crash starts
+    earlier than the segment before it); empty when the file is absent (runs older than it)."""
+    if not os.path.exists(path):
+        return []
+    with open(path, newline='') as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r['t_start_s'] = float(r['t_start_s'])
+        r['started_unix'] = float(r['started_unix'])
+        r['wall_before_s'] = float(r['wall_before_s'])
+    return sorted(rows, key=lambda r: r['t_start_s'])
+
+
+def cost_windows(progress, dt, window_s, segments=(), min_lines=5):
+    """Cost of a run per window of simulated time, split at segment starts.
+
+    :param progress: :func:`read_progress`'s dict.
+    :param dt: the run's time step [s].
+    :param window_s: window length in simulated time [s].
+    :param segments: :func:`read_segments`'s list, numbered in order of start time (the interval of two progress lines that
+        straddles a segment start is left out: part of it was run, and lost, by the segment before).
+    :returns: list of dicts: window start and end [s], segment index (−1 without segments), grains
+        and contacts at the window's end, wall time [s], simulated time [s], wall per simulated
+        second, steps, all-in ns per contact-sweep, number of progress intervals.
+    """
+    t, w = progress['time_s'], progress['wall_s']
+    work = progress['contacts'] * progress['sweeps']
+    starts = sorted(s['t_start_s'] for s in segments)
+    rows = []
+    if len(t) < 2:
+        return rows
+    t0, t1, dw = t[:-1], t[1:], np.diff(w)
+    ok = (t1 > t0) & (dw >= 0)
+    for s in starts:
+        ok &= ~((t0 < s - 0.5 * dt) & (t1 > s + 0.5 * dt))
+    seg = np.searchsorted(np.array(starts), t0 + 0.5 * dt, side='right') - 1 if starts else np.full(len(t0), -1)
+    win = np.floor(t0 / window_s + 1e-9).astype(int)   # by the interval's start
+    for key in sorted(set(zip(win[ok], seg[ok]))):
+        m = ok & (win == key[0]) & (seg == key[1])
+        if m.sum() < min_lines:
+            continue
+        steps = np.round((t1[m] - t0[m]) / dt)
+        wall, sim = float(dw[m].sum()), float((t1[m] - t0[m]).sum())
+        last = np.flatnonzero(m)[-1] + 1
+        rows.append({'t_from_s': float(t0[m][0]), 't_to_s': float(t1[m][-1]), 'segment': int(key[1]),
+                     'grains': int(progress['grains'][last]), 'contacts': int(progress['contacts'][last]),
+                     'wall_s': wall, 'sim_s': sim, 'wall_per_sim_s': wall / sim, 'steps': int(steps.sum()),
+                     'ns_per_contact_sweep': 1e9 * wall / float((steps * work[1:][m]).sum()),
+                     'intervals': int(m.sum())})
+    return rows

@@ -1,0 +1,249 @@
+"""Ensembles of sand piles: many runs of ``scripts/pile.py`` (sizes x seeds), driven as
+subprocesses, resumable, with a status file that records every run's fate.
+
+Pure Python (no YADE, no numpy): the driver runs under Debian's ``/usr/bin/python3`` and starts
+one YADE process per pile through ``scripts/yade``. Used by ``scripts/pile_ensemble.py``.
+
+Layout of an ensemble directory::
+
+    ensemble.json          plan (sizes, seeds, pile options) and one record per run
+    n<N>_s<S>/             the run directory of the pile of N grains and seed S (pile.py layout)
+    n<N>_s<S>/log.txt      its YADE output
+
+A run is *done* when its ``run.json`` carries ``wall_time_s`` and ``finished`` (written by
+:func:`yadecd.pile.run` after its last step) and a snapshot exists. Calling :func:`run_ensemble` again skips the
+done runs and resumes the others from their checkpoints (``--resume``), so an ensemble survives a
+killed driver. A run that fails (non-zero exit, a bad option) is recorded as ``failed`` with its
+exit code and the tail of its log; the other runs go on.
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from ..io import write_json_atomic
+from ..pile.protocol import DEFAULTS, feed_time
+
+RATE_DEFAULT = DEFAULTS['rate']     # grains per second
+DT_DEFAULT = DEFAULTS['dt']         # s
+
+
+def run_name(n_grains, seed):
+    """Directory name of one run of an ensemble."""
+    return 'n%d_s%d' % (n_grains, seed)
+
+
+def epochs(n_grains, relax, rate=RATE_DEFAULT, dt=DT_DEFAULT):
+    """Snapshot times [s] of an ensemble run: half the feed, end of the feed, end of the
+    relaxation (when relax > 0). Formatted as pile.py's ``--epochs`` string."""
+    t_feed = feed_time(n_grains, rate, dt)
+    times = [0.5 * t_feed, t_feed] + ([t_feed + relax] if relax > 0 else [])
+    return ','.join('%.4f' % t for t in times)
+
+
+def parse_seeds(text):
+    """'1-8' -> [1..8]; '1,3,5' -> [1, 3, 5]; mixed '1-3,7' allowed. Raises ValueError."""
+    seeds = []
+    for part in str(text).split(','):
+        part = part.strip()
+        if not part:
+            continue
+        if '-' in part[1:]:
+            a, b = part.split('-', 1)
+            lo, hi = int(a), int(b)
+            if hi < lo:
+                raise ValueError('seed range %r is empty' % part)
+            seeds.extend(range(lo, hi + 1))
+        else:
+            seeds.append(int(part))
+    if not seeds:
+        raise ValueError('no seed in %r' % text)
+    if len(set(seeds)) != len(seeds):
+        raise ValueError('seeds repeat in %r' % text)
+    return seeds
+
+
+def is_done(run_dir):
+    """True when the run finished: run.json has wall_time_s and a snapshot exists."""
+    path = os.path.join(run_dir, 'run.json')
+    if not os.path.exists(path):
+        return False
+    try:
+        with open(path) as f:
+            p = json.load(f)
+    except (OSError, ValueError):
+        return False
+    return 'wall_time_s' in p and p.get('finished', True) and any(n.startswith('snap_') for n in os.listdir(run_dir))
+
+
+def _tail(path, n=12):
+    try:
+        with open(path, errors='replace') as f:
+            return ''.join(f.readlines()[-n:])
+    except OSError:
+        return ''
+
+
+class Ensemble:
+    """The plan and status of an ensemble directory (``ensemble.json``)."""
+
+    def __init__(self, root):
+        self.root = os.path.abspath(root)
+        self.path = os.path.join(self.root, 'ensemble.json')
+        self.data = {'plan': {}, 'runs': {}}
+        if os.path.exists(self.path):
+            with open(self.path) as f:
+                self.data = json.load(f)
+
+    def save(self):
+        """Write the status atomically (temporary file, then rename)."""
+        os.makedirs(self.root, exist_ok=True)
+        write_json_atomic(self.path, self.data, sort_keys=True)
+
+    def plan(self, sizes, seeds, relax, options):
+        """Add the runs sizes x seeds (existing records are kept). ``options`` are extra pile.py
+        options (list of strings) applied to every run of the ensemble; they may not change once
+        runs exist."""
+        old = self.data.get('plan', {})
+        if old and self.data['runs'] and (old.get('relax') != relax or old.get('options') != list(options)):
+            raise ValueError('ensemble %s was planned with relax=%r options=%r; got relax=%r options=%r '
+                             '(use another directory)' % (self.root, old.get('relax'), old.get('options'),
+                                                          relax, list(options)))
+        self.data['plan'] = {'relax': relax, 'options': list(options)}
+        for n in sizes:
+            for s in seeds:
+                name = run_name(n, s)
+                self.data['runs'].setdefault(name, {'n_grains': n, 'seed': s, 'state': 'pending',
+                                                    'attempts': 0})
+        self.save()
+
+    def runs(self):
+        return self.data['runs']
+
+
+def _command(repo, run_dir, rec, plan, resume):
+    """scripts/yade command line of one run (one thread)."""
+    cmd = [os.path.join(repo, 'scripts', 'yade'), '-j1', '-n', '-x', os.path.join(repo, 'scripts', 'pile.py'),
+           '--out', run_dir]
+    if resume:
+        return cmd + ['--resume']
+    rate, dt = option_value(plan['options'], '--rate', RATE_DEFAULT), option_value(plan['options'], '--dt', DT_DEFAULT)
+    return cmd + ['--n-grains', str(rec['n_grains']), '--seed', str(rec['seed']), '--relax', str(plan['relax']),
+                  '--epochs', epochs(rec['n_grains'], plan['relax'], rate, dt)] + list(plan['options'])
+
+
+def option_value(options, flag, default):
+    """The float value of ``flag`` in a pile.py option list (``['--dt', '1e-3']`` or ``['--dt=1e-3']``),
+    ``default`` when absent. Raises ValueError naming the flag when its value is missing or not a number."""
+    options = list(options)
+    for i, o in enumerate(options):
+        if o == flag or o.startswith(flag + '='):
+            text = o.split('=', 1)[1] if '=' in o else (options[i + 1] if i + 1 < len(options) else None)
+            try:
+                return float(text)
+            except (TypeError, ValueError):
+                raise ValueError('pile option %s needs a number, got %r' % (flag, text))
+    return default
+
+
+def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_failed=False, poll=2.0):
+    """Run every pending run of the ensemble in ``root`` with at most ``jobs`` at a time.
+
+    Done runs are skipped; runs with a checkpoint resume; failed runs are retried only with
+    ``retry_failed``. Returns the status dict of every run. SIGINT/SIGTERM stop the children
+    (they resume from their last checkpoint next time) and leave the status file consistent."""
+    ens = Ensemble(root)
+    runs = ens.runs()
+    todo = []
+    for name, rec in runs.items():
+        run_dir = os.path.join(ens.root, name)
+        if is_done(run_dir):
+            rec['state'] = 'done'
+        elif rec['state'] == 'failed' and not retry_failed:
+            continue
+        else:
+            rec['state'] = 'pending'
+            todo.append(name)
+    ens.save()
+    key = (lambda k: (runs[k]['n_grains'], runs[k]['seed'])) if order == 'small-first' else \
+        (lambda k: (-runs[k]['n_grains'], runs[k]['seed']))
+    todo.sort(key=key)
+    active = {}
+    stop = {'flag': False}
+
+    def _stop(signum, frame):
+        stop['flag'] = True
+
+    old_handlers = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        while (todo or active) and not stop['flag']:
+            while todo and len(active) < jobs and not stop['flag']:
+                name = todo.pop(0)
+                rec = runs[name]
+                run_dir = os.path.join(ens.root, name)
+                os.makedirs(run_dir, exist_ok=True)
+                # a started run resumes (from its checkpoint, or again from its run.json)
+                resume = os.path.exists(os.path.join(run_dir, 'run.json'))
+                logf = open(os.path.join(run_dir, 'log.txt'), 'a')
+                logf.write('\n=== %s %s\n' % (time.strftime('%Y-%m-%d %H:%M:%S'), 'resume' if resume else 'start'))
+                logf.flush()
+                proc = subprocess.Popen(_command(repo, run_dir, rec, ens.data['plan'], resume), stdout=logf,
+                                        stderr=subprocess.STDOUT, cwd=repo, start_new_session=True)
+                rec.update(state='running', attempts=rec.get('attempts', 0) + 1, started=time.time())
+                active[name] = (proc, logf)
+                ens.save()
+                log('ensemble: %s %s (%d running, %d waiting)' % ('resumed' if resume else 'started', name,
+                                                                  len(active), len(todo)))
+            time.sleep(poll)
+            for name in list(active):
+                proc, logf = active[name]
+                rc = proc.poll()
+                if rc is None:
+                    continue
+                logf.close()
+                del active[name]
+                rec = runs[name]
+                run_dir = os.path.join(ens.root, name)
+                rec['returncode'] = rc
+                rec['wall_s'] = time.time() - rec.pop('started', time.time())
+                if rc == 0 and is_done(run_dir):
+                    rec['state'] = 'done'
+                    rec.pop('error', None)
+                else:
+                    rec['state'] = 'failed'
+                    rec['error'] = _tail(os.path.join(run_dir, 'log.txt'))
+                ens.save()
+                log('ensemble: %s %s (exit %d, %.0f s)' % (name, rec['state'], rc, rec['wall_s']))
+    finally:
+        for name, (proc, logf) in active.items():
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+                proc.wait(timeout=30)
+            except (OSError, subprocess.TimeoutExpired):
+                os.killpg(proc.pid, signal.SIGKILL)
+            logf.close()
+            runs[name]['state'] = 'pending'
+            runs[name].pop('started', None)
+        ens.save()
+        for s, h in old_handlers.items():
+            signal.signal(s, h)
+    return runs
+
+
+def status_lines(root):
+    """One line per run: name, state, attempts, wall time, and the first error line."""
+    ens = Ensemble(root)
+    lines = []
+    for name, rec in sorted(ens.runs().items(), key=lambda kv: (kv[1]['n_grains'], kv[1]['seed'])):
+        state = 'done' if is_done(os.path.join(ens.root, name)) else rec['state']
+        err = (rec.get('error') or '').strip().splitlines()
+        lines.append('%-12s %-8s attempts %d  %s%s' % (name, state, rec.get('attempts', 0),
+                                                        '%.0f s' % rec['wall_s'] if 'wall_s' in rec else '',
+                                                        ('  error: ' + err[-1]) if err and state == 'failed' else ''))
+    return lines
+
+
+if __name__ == '__main__':
+    sys.exit('use scripts/pile_ensemble.py')

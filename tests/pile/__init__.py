@@ -1,0 +1,1 @@
+"""Tests of yadecd: see tests/README.md."""

@@ -1,0 +1,151 @@
+"""Carrying a pile run between machines (yadecd.carry) on constructed run directories: which
+snapshots go, the checkpoint reduced to state.npz, a damaged newest unit, a destination replaced
+whole, and refusals. The resume of a carried real run is tests/test_runstate.py
+TestResume.test_carried_resume."""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import unittest
+
+from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
+from yadecd.runs.carry import carry, chosen_snapshots, snapshot_time
+from yadecd.runs.checkpoint import CheckpointError, CheckpointStore
+
+QUIET = dict(log=lambda s: None)
+
+
+def snap(t):
+    return 'snap_%08.3f.npz' % t
+
+
+class TestSnapshotChoice(unittest.TestCase):
+
+    def test_names(self):
+        self.assertEqual(snapshot_time(snap(12.5)), 12.5)
+        for other in ('run.json', 'snap_x.npz', 'snap_1.000.npz.tmp', 'vtk_0001.vtu'):
+            self.assertIsNone(snapshot_time(other))
+
+    def test_multiples_and_newest(self):
+        names = [snap(t) for t in (2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 21.3)] + ['run.json', snap(2) + '.tmp']
+        self.assertEqual(chosen_snapshots(names, 10), [snap(10), snap(20), snap(21.3)])
+        self.assertEqual(chosen_snapshots(names, None)[-1], snap(21.3))
+        self.assertEqual(len(chosen_snapshots(names, None)), 11)
+        # times written with three decimals: 0.1 * k is found although 0.3 / 0.1 is not an integer in binary
+        self.assertEqual(chosen_snapshots([snap(0.1 * k) for k in range(1, 7)], 0.3), [snap(0.3), snap(0.6)])
+        self.assertEqual(chosen_snapshots([snap(20)], 10), [snap(20)])     # newest already a multiple: once
+        self.assertEqual(chosen_snapshots([], 10), [])
+        # the end of the feed is kept although it is not a multiple (a 5000-grain pile: 25 s at 200 grains/s)
+        names = [snap(t) for t in (2, 10, 20, 24, 25, 26)]
+        self.assertEqual(chosen_snapshots(names, 10, also=(25.0,)), [snap(10), snap(20), snap(25), snap(26)])
+        self.assertEqual(chosen_snapshots(names, 10, also=(25.0004,)), [snap(10), snap(20), snap(26)])
+
+    def test_bad_interval(self):
+        for bad in (0, -2.0, float('nan')):
+            with self.assertRaisesRegex(ValueError, 'snap_every'):
+                chosen_snapshots([snap(1)], bad)
+
+
+class TestCarry(unittest.TestCase):
+    """A constructed run directory: run.json, progress.csv, snapshots, two checkpoint units."""
+
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix='cd-carry-')
+        self.src = os.path.join(self.tmp, 'run')
+        os.makedirs(self.src)
+        with open(os.path.join(self.src, 'run.json'), 'w') as f:
+            json.dump({'n_grains': 10, 'rate': 5.0}, f)      # the feed ends at 2 s
+        with open(os.path.join(self.src, 'progress.csv'), 'w') as f:
+            f.write('t,grains\n0.5,3\n')
+        with open(os.path.join(self.src, 'segments.csv'), 'w') as f:
+            f.write('started_unix,t_start_s\n1.0,0.0\n')
+        for t in (1, 2, 3):
+            with open(os.path.join(self.src, snap(t)), 'wb') as f:
+                f.write(b'snapshot %d' % t)
+        store = CheckpointStore(self.src)
+        for t in (1.0, 2.0):
+            store.write({'state.npz': self.writer(b'state %g' % t), 'scene.yade.gz': self.writer(b'archive')},
+                        {'time': t, 'iter': int(100 * t), 'wall_s': 10 * t})
+        self.dest = os.path.join(self.tmp, 'repo', 'runs', 'carried')
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    @staticmethod
+    def writer(content):
+        def write(path):
+            with open(path, 'wb') as f:
+                f.write(content)
+        return write
+
+    def test_copy(self):
+        record = carry(self.src, self.dest, snap_every=2, **QUIET)
+        self.assertEqual(sorted(os.listdir(self.dest)),
+                         sorted(['run.json', 'progress.csv', 'segments.csv', snap(2), snap(3), 'ckpt', 'CARRIED.json']))
+        self.assertEqual((record['checkpoint'], record['time'], record['wall_s']), (2, 2.0, 20.0))
+        self.assertEqual(record['snapshots_left_out'], [snap(1)])
+        seq, unit, info = CheckpointStore(self.dest).latest()
+        self.assertEqual(seq, 2)
+        self.assertEqual(sorted(os.listdir(unit)), ['meta.json', 'state.npz'])
+        self.assertEqual(list(info['files']), ['state.npz'])
+        self.assertEqual(info['meta']['time'], 2.0)
+        with open(os.path.join(unit, 'state.npz'), 'rb') as f:
+            self.assertEqual(f.read(), b'state 2')
+
+    def test_feed_end_kept(self):
+        """The snapshot at the end of the feed (run.json: 10 grains at 5 per second, 2 s) is carried
+        although it is not a multiple of snap_every; a run.json without a rate keeps only the multiples."""
+        record = carry(self.src, self.dest, snap_every=3, **QUIET)
+        self.assertEqual(record['snapshots'], [snap(2), snap(3)])
+        with open(os.path.join(self.src, 'run.json'), 'w') as f:
+            json.dump({'n_grains': 10}, f)
+        record = carry(self.src, self.dest, snap_every=3, **QUIET)
+        self.assertEqual(record['snapshots'], [snap(3)])
+
+    def test_damaged_newest_unit(self):
+        """The source's newest unit is truncated: the one before it is carried, and the log says why."""
+        with open(os.path.join(self.src, 'ckpt', '000002', 'state.npz'), 'wb') as f:
+            f.write(b'sta')
+        lines = []
+        record = carry(self.src, self.dest, log=lines.append)
+        self.assertEqual(record['checkpoint'], 1)
+        self.assertIn('checkpoint 2 skipped', '\n'.join(lines))
+
+    def test_destination_replaced_whole(self):
+        os.makedirs(self.dest)
+        with open(os.path.join(self.dest, snap(9)), 'w') as f:
+            f.write('a snapshot of an older carry')
+        carry(self.src, self.dest, **QUIET)
+        self.assertNotIn(snap(9), os.listdir(self.dest))
+        self.assertFalse(any(n.startswith('carried.carry-') for n in os.listdir(os.path.dirname(self.dest))))
+        # carrying the copy again (back to a working directory) gives the same files
+        back = os.path.join(self.tmp, 'work')
+        carry(self.dest, back, **QUIET)
+        self.assertEqual(sorted(os.listdir(back)), sorted(os.listdir(self.dest)))
+
+    def test_refusals(self):
+        with self.assertRaisesRegex(FileNotFoundError, 'no run.json'):
+            carry(self.tmp, self.dest, **QUIET)
+        with self.assertRaisesRegex(ValueError, 'same directory'):
+            carry(self.src, self.src + '/', **QUIET)
+        shutil.rmtree(os.path.join(self.src, 'ckpt'))
+        with self.assertRaisesRegex(CheckpointError, 'no checkpoint yet'):
+            carry(self.src, self.dest, **QUIET)
+        self.assertFalse(os.path.exists(self.dest))
+
+    def test_command_line(self):
+        """scripts/pile_carry.py: carries, and names the culprit on bad input (exit status 1)."""
+        script = os.path.join(SCRIPTS, 'pile_carry.py')
+        python = '/usr/bin/python3' if os.path.exists('/usr/bin/python3') else sys.executable
+        ok = subprocess.run([python, script, self.src, self.dest, '--snap-every', '2'], capture_output=True, text=True)
+        self.assertEqual(ok.returncode, 0, ok.stderr)
+        self.assertIn('checkpoint 2 at t=2.000 s, 2 snapshots (1 left out), without scene.yade.gz', ok.stdout)
+        bad = subprocess.run([python, script, self.tmp, self.dest], capture_output=True, text=True)
+        self.assertEqual(bad.returncode, 1)
+        self.assertIn('no run.json', bad.stderr)
+
+
+if __name__ == '__main__':
+    unittest.main()

@@ -1,0 +1,82 @@
+"""What a run's wall time went into (yadecd.runcost) on constructed progress records with known
+costs: two segments on hosts of different speed, the interval that straddles a resume left out,
+sparse windows dropped, and the segment log written and read back."""
+import os
+import tempfile
+import unittest
+
+import numpy as np
+
+from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
+from yadecd.runs import cost as runcost
+
+
+def progress(costs_ns, dt=1e-3, line_every=10, contacts=lambda t: 1000 + 100 * t, sweeps=lambda k: 300 + 50 * (k % 7)):
+    """Progress lines every ``line_every`` steps; the wall time of each interval is steps ×
+    contacts × sweeps × the cost [ns] of the segment (``costs_ns``: list of (t_start, cost)) in
+    force at the interval's start. Sweeps vary from line to line as a real run's do."""
+    t, w, rows = 0.0, 0.0, []
+    for k in range(1, 401):
+        t_new = round(k * line_every * dt, 9)
+        cost = [c for s, c in costs_ns if s <= t + 0.5 * dt][-1]
+        c, s = contacts(t_new), sweeps(k)
+        w += line_every * c * s * cost * 1e-9
+        rows.append((t_new, int(c / 3), c, s, 1e-3, w))
+        t = t_new
+    a = np.array(rows, dtype=float)
+    return dict(zip(('time_s', 'grains', 'contacts', 'sweeps', 'residual', 'wall_s'), a.T))
+
+
+class TestCostWindows(unittest.TestCase):
+
+    def test_known_costs(self):
+        """50 ns per contact-sweep until t = 2 s, 150 after (a slower host): every window gives its
+        segment's cost exactly, and the wall time per simulated second is steps/s × contacts ×
+        sweeps × cost."""
+        p = progress([(0.0, 50.0), (2.0, 150.0)])
+        rows = runcost.cost_windows(p, 1e-3, 1.0, [{'t_start_s': 0.0}, {'t_start_s': 2.0}])
+        self.assertEqual([r['segment'] for r in rows], [0, 0, 1, 1])
+        for r in rows:
+            self.assertAlmostEqual(r['ns_per_contact_sweep'], 50.0 if r['segment'] == 0 else 150.0, delta=1e-9)
+            self.assertEqual(r['steps'], round(r['sim_s'] / 1e-3))
+        # without segment records the same windows, numbered -1, give the same costs
+        bare = runcost.cost_windows(p, 1e-3, 1.0)
+        self.assertEqual([r['segment'] for r in bare], [-1] * 4)
+        self.assertEqual([round(r['ns_per_contact_sweep'], 6) for r in bare], [50.0, 50.0, 150.0, 150.0])
+        # constant contacts and sweeps: wall per simulated second = 1000 steps × c × s × cost
+        q = progress([(0.0, 80.0)], contacts=lambda t: 2000.0, sweeps=lambda k: 400)
+        r = runcost.cost_windows(q, 1e-3, 2.0)[0]
+        self.assertAlmostEqual(r['wall_per_sim_s'], 1000 * 2000 * 400 * 80e-9, delta=1e-9)
+
+    def test_resume_interval_and_sparse_windows(self):
+        """A segment that starts between two progress lines: the interval across it is left out
+        (the window still reports its own lines); a window of fewer than min_lines lines is dropped."""
+        p = progress([(0.0, 50.0), (1.005, 150.0)])
+        rows = runcost.cost_windows(p, 1e-3, 1.0, [{'t_start_s': 0.0}, {'t_start_s': 1.005}])
+        # the interval 1.00-1.01 straddles the start: left out, so segment 1's window starts at 1.01
+        seg1 = [r for r in rows if r['segment'] == 1][0]
+        self.assertAlmostEqual(seg1['t_from_s'], 1.01, delta=1e-9)
+        self.assertAlmostEqual(seg1['ns_per_contact_sweep'], 150.0, delta=1e-9)
+        self.assertEqual(sum(r['intervals'] for r in rows), 399 - 1)
+        few = runcost.cost_windows({k: v[:4] for k, v in p.items()}, 1e-3, 1.0)
+        self.assertEqual(few, [])
+        self.assertEqual(runcost.cost_windows({k: v[:1] for k, v in p.items()}, 1e-3, 1.0), [])
+
+
+class TestSegmentLog(unittest.TestCase):
+
+    def test_append_and_read(self):
+        with tempfile.TemporaryDirectory() as d:
+            self.assertEqual(runcost.read_segments(os.path.join(d, 'segments.csv')), [])
+            runcost.append_segment(d, 0.0, 0.0, 2)
+            runcost.append_segment(d, 25.975, 8349.4, 1)
+            runcost.append_segment(d, 20.0, 7000.0, 2)   # a resume from an older checkpoint after a crash
+            segs = runcost.read_segments(os.path.join(d, 'segments.csv'))
+            self.assertEqual([s['t_start_s'] for s in segs], [0.0, 20.0, 25.975])   # in order of start time
+            self.assertEqual([s['threads'] for s in segs], ['2', '2', '1'])
+            self.assertAlmostEqual(segs[2]['wall_before_s'], 8349.4)
+            self.assertTrue(segs[0]['host'] and segs[0]['cpu'])
+
+
+if __name__ == '__main__':
+    unittest.main()
