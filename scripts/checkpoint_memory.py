@@ -10,7 +10,6 @@ second. Prints the wall time and size of one checkpoint, the growth per checkpoi
 steps (least-squares slopes over each phase's second half) and writes the samples to --out.
 """
 import argparse
-import csv
 import os
 import shutil
 import sys
@@ -22,6 +21,7 @@ import numpy as np
 from yade import O
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 from yadecd import pile  # noqa: E402
+from yadecd.io import write_csv  # noqa: E402
 
 
 def rss_mb():
@@ -74,7 +74,4 @@ print('checkpoint_memory: start %.1f MB; after %d checkpoints %.1f MB (second ha
       % (rows[0][2], a.checkpoints, ck1, ck))
 print('checkpoint_memory: then after %d steps %.1f MB (second half: %+.3f MB per 1000 steps)' % (a.steps, st1, st))
 if a.out:
-    with open(a.out, 'w', newline='') as f:
-        w = csv.writer(f)
-        w.writerow(['phase', 'count', 'rss_mb'])
-        w.writerows(rows)
+    write_csv(a.out, [dict(phase=p, count=c, rss_mb=m) for p, c, m in rows])

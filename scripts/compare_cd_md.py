@@ -42,4 +42,5 @@ ap.add_argument('--max-wall', type=float, default=120.0, help='stop any single r
 a = ap.parse_args(sys.argv[1:])
 a.csv = a.csv or os.path.join(REPO, *(('out', 'compare_quick', 'compare.csv') if a.quick else ('docs', 'data', 'compare.csv')))
 a.figs = a.figs or os.path.join(REPO, *(('out', 'compare_quick') if a.quick else ('docs', 'figures')))
-sys.exit(compare_sweep.main(a))
+compare_sweep.sweep(a.csv, a.figs, plot_only=a.plot_only, dry_run=a.dry_run, quick=a.quick, scenes=a.scenes,
+                    resume=a.resume, momentum=a.momentum, max_wall=a.max_wall)

@@ -1,4 +1,4 @@
-"""CD against MD on a small pile (issue 5, scene 7): the pile protocol of scripts/pile.py run with
+"""CD against MD on a small pile: the pile protocol of scripts/pile.py run with
 the CD engine and with YADE's linear soft contacts at several stiffnesses, side by side.
 
     scripts/yade -n -x scripts/compare_pile.py [--grains 300] [--relax 0.5] [--out out/compare_pile]

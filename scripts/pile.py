@@ -5,7 +5,8 @@
     yade -n -x scripts/pile.py --out NEW --branch-from DIR --tolerance 3e-3   # DIR's state, another solver setting
     yade-batch table.txt scripts/pile.py                  # one pile per table row
 
-Every option defaults to the paper's value (see ``yadecd.pile.DEFAULTS``; SI units: metres,
+Every option defaults to the paper's value (``yadecd.pile.defaults()``: the protocol's
+``yadecd.pile.protocol.DEFAULTS`` over the engine's solver defaults; SI units: metres,
 seconds, kg/m³). In a ``yade-batch`` table the column names are the option names with
 underscores (n_grains, seed, ...), plus ``out`` and YADE's ``description`` (the job name);
 values are Python expressions, so strings are quoted::
@@ -33,22 +34,23 @@ parser.add_argument('--branch-from', metavar='RUN', default=None,
                     help='start --out as a branch of the run in RUN (from its newest checkpoint) with the solver options '
                     'given here changed (%s), and continue it' % ', '.join(pile.BRANCH_MAY_CHANGE))
 parser.add_argument('--overwrite', action='store_true', help='start again in --out even if it holds a run (its files are removed)')
-for key, value in pile.DEFAULTS.items():
+ALL = pile.defaults()
+for key, value in ALL.items():
     flag = '--' + key.replace('_', '-')
     if isinstance(value, bool):
         parser.add_argument(flag, dest=key, action=argparse.BooleanOptionalAction, default=None, help="default: %s" % value)
     else:
         parser.add_argument(flag, dest=key, type=type(value), default=None, help='default: %r' % (value,))
 args = parser.parse_args(sys.argv[1:])
-params = {k: v for k, v in vars(args).items() if k in pile.DEFAULTS and v is not None}
+params = {k: v for k, v in vars(args).items() if k in ALL and v is not None}
 out = args.out
 
 if os.environ.get('YADE_BATCH'):
     from yade import utils
-    table = dict(pile.DEFAULTS, out=out)
+    table = dict(ALL, out=out)
     utils.readParamsFromTable(**table)
     from yade.params import table as t
-    params = {k: getattr(t, k) for k in pile.DEFAULTS}
+    params = {k: getattr(t, k) for k in ALL}
     out = t.out
 
 if args.resume and args.overwrite:

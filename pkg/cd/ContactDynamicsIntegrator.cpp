@@ -3,6 +3,7 @@
 #include "ContactDynamicsIntegrator.hpp"
 #include "core/LocalSolver.hpp"
 #include "core/ProblemFile.hpp"
+#include "core/Schedule.hpp"
 #include "CDPhys.hpp"
 #include <core/Clump.hpp>
 #include <core/Scene.hpp>
@@ -42,6 +43,23 @@ namespace {
 
 // ----------------------------------------------------------------------------- set-up helpers
 
+std::string ContactDynamicsIntegrator::scheduleName(int code)
+{
+	switch (code) {
+		case cd::Schedule::Height: return "height";
+		case cd::Schedule::Colours: return "colours";
+		case cd::Schedule::Slabs: return "slabs";
+		default: return "";
+	}
+}
+
+int ContactDynamicsIntegrator::scheduleCode(const std::string& name)
+{
+	for (int code : { int(cd::Schedule::Height), int(cd::Schedule::Colours), int(cd::Schedule::Slabs) })
+		if (scheduleName(code) == name) return code;
+	return 0;
+}
+
 void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 {
 	auto bad = [](const std::string& what) { throw std::invalid_argument("ContactDynamicsIntegrator." + what); };
@@ -52,12 +70,32 @@ void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 	if (!(alertSpeedFactor >= 1)) bad("alertSpeedFactor=" + std::to_string(alertSpeedFactor) + ": must be ≥ 1, or contacts closing within a step are missed.");
 	if (!(positionTolerance > 0)) bad("positionTolerance=" + std::to_string(positionTolerance) + ": must be a positive number.");
 	if (!(relaxation > 0 && relaxation < 2)) bad("relaxation=" + std::to_string(relaxation) + ": must lie in (0, 2).");
-	if (sweepOrder == 0 || sweepOrder == 2 || sweepOrder == 3)
-		bad("sweepOrder=" + std::to_string(sweepOrder) + ": retired (measured worse than 1, by height, in docs/results.md); use 1, 4 (colours) or 5 (slabs).");
-	if (sweepOrder != 1 && sweepOrder != 4 && sweepOrder != 5) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 1 (height), 4 (colours) or 5 (slabs).");
+	syncSchedule();
 	if (slabs < 1 || slabs > 64) bad("slabs=" + std::to_string(slabs) + ": must lie in 1..64.");
 	if (parallelMinContacts < 0) bad("parallelMinContacts=" + std::to_string(parallelMinContacts) + ": must be 0 (always use the threads) or more.");
 	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
+}
+
+void ContactDynamicsIntegrator::syncSchedule()
+{
+	auto bad = [](const std::string& what) { throw std::invalid_argument("ContactDynamicsIntegrator." + what); };
+	// The schedule has a name (schedule, not saved) and a code (sweepOrder, saved): whichever of
+	// the two changed since the last call sets the other. An archive sets only the code.
+	const bool nameSet = schedule != scheduleSeen, codeSet = sweepOrder != sweepOrderSeen;
+	if (nameSet) {
+		const int code = scheduleCode(schedule);
+		if (!code) bad("schedule='" + schedule + "': must be 'height', 'colours' or 'slabs'.");
+		if (codeSet && sweepOrder != code)
+			bad("schedule='" + schedule + "' and sweepOrder=" + std::to_string(sweepOrder) + " disagree: set schedule only (sweepOrder is its deprecated code).");
+		sweepOrder = code;
+	} else if (codeSet) {
+		if (sweepOrder == 0 || sweepOrder == 2 || sweepOrder == 3)
+			bad("sweepOrder=" + std::to_string(sweepOrder) + ": a retired order; set schedule='height', 'colours' or 'slabs' (docs/results.md says why the others were retired).");
+		if (scheduleName(sweepOrder).empty()) bad("sweepOrder=" + std::to_string(sweepOrder) + ": must be 1 (schedule 'height'), 4 ('colours') or 5 ('slabs').");
+		schedule = scheduleName(sweepOrder);
+	}
+	scheduleSeen   = schedule;
+	sweepOrderSeen = sweepOrder;
 }
 
 const ContactDynamicsIntegrator* ContactDynamicsIntegrator::find(const Scene* scene)
@@ -166,7 +204,7 @@ cd::Params ContactDynamicsIntegrator::params() const
 	p.schedule          = sweepOrder;
 	p.slabs             = slabs;
 	p.momentum          = momentum;
-	p.sphereKernel      = sphereFastPath;
+	p.sphereFastPath      = sphereFastPath;
 	p.recordResidual    = recordResidual;
 	p.positionTolerance = positionTolerance;
 	p.maxProjectionIter = maxProjectionIter;

@@ -10,10 +10,25 @@ The C++ classes (``ContactDynamicsIntegrator``, ``CDPhys``, ``Ip2_FrictMat_Frict
 ``Law2_ScGeom_CDPhys_Coulomb`` and the ``Ig2_*_CDScGeom`` / ``Bo1_Sphere_CDAabb`` functors) are
 loaded by YADE at start-up and live in ``yade.wrapper`` like every other class.
 """
-__all__ = ['engines', 'integrator']
+__all__ = ['engines', 'integrator', 'solver_options', 'SOLVER_OPTIONS']
 
-# YADE is imported by the functions that need it, never at import time: the analysis modules
-# (pile_analysis, pile_figures, ensemble, checkpoint, faults, synthetic...) import without YADE.
+# YADE is imported by the functions that need it, never at import time: yadecd.analysis,
+# yadecd.pile.protocol, yadecd.io and most of yadecd.runs import without YADE (tests/analysis/test_layout.py).
+
+#: The engine's solver options: the attributes of :class:`ContactDynamicsIntegrator` that say how
+#: each step is solved. The C++ class is the one definition of each (name, default, validation,
+#: docstring); :func:`solver_options` reads their defaults from it.
+SOLVER_OPTIONS = ('tolerance', 'maxIter', 'checkEvery', 'relaxation', 'momentum', 'schedule', 'slabs', 'sphereFastPath',
+                  'alertRatio', 'alertSpeedFactor', 'positionTolerance', 'maxProjectionIter', 'correctionMomentum',
+                  'parallelMinContacts', 'warnUnconverged', 'recordResidual')
+
+
+def solver_options():
+    """``{name: default}`` of the engine's :data:`SOLVER_OPTIONS`, read from a fresh
+    :class:`ContactDynamicsIntegrator` (what each does: its docstring, ``help(ContactDynamicsIntegrator)``)."""
+    from yade.wrapper import ContactDynamicsIntegrator
+    fresh = ContactDynamicsIntegrator()
+    return {name: getattr(fresh, name) for name in SOLVER_OPTIONS}
 
 
 def engines(gravity=(0, 0, -9.81), en=0.0, et=0.0, extra=(), **integrator_options):

@@ -21,7 +21,7 @@ import platform
 import socket
 import subprocess
 
-__all__ = ['fsync_dir', 'write_json_atomic', 'write_bytes_atomic', 'jsonable', 'host_description',
+__all__ = ['fsync_dir', 'write_json_atomic', 'write_bytes_atomic', 'jsonable', 'host_description', 'append_csv',
            'provenance', 'write_csv', 'PROVENANCE_FIELDS']
 
 
@@ -132,3 +132,33 @@ def write_csv(path, rows, log=print, stamp=True):
     os.replace(tmp, path)
     log('wrote %s' % path)
     return path
+
+
+def append_csv(path, row, fields, start=False, stamp=True):
+    """Append one record ``row`` (a dict over ``fields``) to the CSV file ``path``, for
+    measurements written as they come (a crash loses nothing). ``start``: begin the file anew
+    (directory created, header written). With ``stamp`` the row also carries
+    :data:`PROVENANCE_FIELDS`, which the header then lists after ``fields``."""
+    fields = list(fields) + ([k for k in PROVENANCE_FIELDS if k not in fields] if stamp else [])
+    if start or not os.path.exists(path):
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        with open(path, 'w', newline='') as f:
+            csv.DictWriter(f, fieldnames=fields).writeheader()
+    if row is None:
+        return path
+    if stamp:
+        row = dict(row, **{k: v for k, v in _provenance_cached().items() if k not in row})
+    with open(path, 'a', newline='') as f:
+        csv.DictWriter(f, fieldnames=fields, extrasaction='raise').writerow(row)
+    return path
+
+
+_PROVENANCE = None
+
+
+def _provenance_cached():
+    """:func:`provenance`, asked of git once per process (the time is the first row's)."""
+    global _PROVENANCE
+    if _PROVENANCE is None:
+        _PROVENANCE = provenance()
+    return _PROVENANCE

@@ -200,10 +200,9 @@ def cradle(n=5, r=0.01, v=1.0, gap_ratio=0.1, en=1.0, dt=1e-4, density=1000.0, m
     return {'ids': ids, 'r': r, 'v': v, 'gap': gap_ratio * r}
 
 
-def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=1.0, momentum=False, **options):
+def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=None, momentum=None, **options):
     """Adjust the CD scene just built: time step, solver tolerance and maxIter, over-relaxation
-    and momentum (pinned to 1 and off, plain Gauss–Seidel, unless given: the installed plugin's
-    defaults may differ; ``None`` keeps the plugin's default),
+    and momentum (``None``, the default, keeps the engine's own: :func:`yadecd.solver_options`),
     restitution of contacts not yet created, other integrator attributes; unconverged-step
     warnings are silenced (they are counted in ``nUnconverged``, which :func:`run` reports)."""
     if relaxation is not None:

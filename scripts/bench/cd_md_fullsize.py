@@ -1,5 +1,5 @@
 """CD against YADE's soft-contact MD on a pile at the paper's size, from the same state over the
-same simulated time, fed by the same protocol (issue 16, done-criterion 1).
+same simulated time, fed by the same protocol.
 
     scripts/yade -j1 -n -x scripts/bench/cd_md_fullsize.py --snapshot RUN/snap.npz [--time 0.01] [--warmup 0.002]
         [--cd-dt 2e-4,1e-3] [--cd-tolerance 1e-3,3e-3] [--young 1e9,auto] [--md-scale-time] [--out docs/data/cd_md_fullsize.csv]

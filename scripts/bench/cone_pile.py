@@ -1,4 +1,4 @@
-"""Build a large pile state for solver benchmarks in minutes (issue 6's ~33 000-contact state).
+"""Build a large pile state for solver benchmarks in minutes (the size of the paper's deposited pile).
 
     scripts/yade -n -x scripts/bench/cone_pile.py --out out/cone14000 [--n-grains 14000]
                        [--slope 28] [--settle 0.1] [--seed 1] [--separate]

@@ -39,7 +39,7 @@ ap.add_argument('--feed', action='store_true', help='snapshots: create grains by
 ap.add_argument('--count', type=int, default=1, help='steps to save')
 ap.add_argument('--spacing', type=int, default=1, help='steps between two saved steps')
 ap.add_argument('--tolerance', type=float, default=None, help="solver tolerance (default: the run's)")
-ap.add_argument('--schedule', type=int, default=None, help='sweepOrder (default: the run\'s)')
+ap.add_argument('--schedule', choices=('height', 'colours', 'slabs'), default=None, help='sweep schedule (default: the run\'s)')
 ap.add_argument('--slabs', type=int, default=None)
 a = ap.parse_args(sys.argv[1:])
 if not os.path.exists(a.source):
@@ -59,14 +59,14 @@ def outputs():
 
 
 def configure(cd):
-    for key, value in (('tolerance', a.tolerance), ('sweepOrder', a.schedule), ('slabs', a.slabs)):
+    for key, value in (('tolerance', a.tolerance), ('schedule', a.schedule), ('slabs', a.slabs)):
         if value is not None:
             setattr(cd, key, value)
 
 
 def report(path, cd):
-    print('save_step: %s: %d bodies, %d contacts, %d sweeps in the saved step (tolerance %g, sweepOrder %d, slabs %d)'
-          % (path, len(O.bodies), cd.nContacts, cd.iterations, cd.tolerance, cd.sweepOrder, cd.slabs), flush=True)
+    print('save_step: %s: %d bodies, %d contacts, %d sweeps in the saved step (tolerance %g, schedule %s, slabs %d)'
+          % (path, len(O.bodies), cd.nContacts, cd.iterations, cd.tolerance, cd.schedule, cd.slabs), flush=True)
 
 
 if from_run:

@@ -1,4 +1,4 @@
-"""Cross-check one step of a CD run against Siconos (issue 6, section 2).
+"""Cross-check one step of a CD run against Siconos.
 
     scripts/yade -n -x scripts/bench/siconos_crosscheck.py [--snapshot RUN/snap_0008.000.npz | --fcc 1e4]
                                                           [--tol 1e-6] [--out docs/data/siconos_crosscheck.csv]
@@ -12,7 +12,6 @@ until it reaches the engine's residual. Reported for every solution, under one c
 of impulses and velocities. Appends one CSV row per solver.
 """
 import argparse
-import csv
 import datetime
 import os
 import sys
@@ -24,6 +23,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), 
 import yadecd
 from yadecd import scenes, pile  # noqa: E402
 from yadecd.export import fclib  # noqa: E402
+from yadecd.io import append_csv  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))  # inside YADE __file__ is the yade executable
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -103,10 +103,6 @@ for start, r0 in (('cold', None), ('warm', r_warm)):
                      common_residual=s['residual'], max_dr_rel=dr, max_du_rel=du))
 
 os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-new = not os.path.exists(args.out)
-with open(args.out, 'a', newline='') as f:
-    w = csv.DictWriter(f, fieldnames=list(rows[0]))
-    if new:
-        w.writeheader()
-    w.writerows(rows)
+for row in rows:
+    append_csv(args.out, row, list(rows[0]))
 print('wrote', args.out, 'and', args.fclib)

@@ -1,4 +1,4 @@
-"""Solver benchmark harness (issue 6): prints and saves (CSV) per-contact Gauss–Seidel cost of
+"""Solver benchmark harness: prints and saves (CSV) per-contact Gauss–Seidel cost of
 the CD engine and of Siconos' NSGS on the same problems, and where a step's time goes.
 
     scripts/yade -n -x scripts/bench/solver_bench.py [--contacts 1e3,1e4,1e5] [--snapshot RUN/snap_*.npz]
@@ -10,13 +10,13 @@ Measurements (one run, one machine: compare rows of the same run, as ratios):
   of two solves of K1 and K2 forced sweeps (tolerance unreachable) divided by (K2−K1)·contacts,
   so set-up, warm start and residual checks cancel. The same exported problem solved by
   Siconos NSGS with the same two sweep counts gives its figure the same way.
-- ``CD coloured``: the same with ``sweepOrder=4`` (colour by colour, parallel over O.numThreads
+- ``CD coloured``: the same with ``schedule='colours'`` (colour by colour, parallel over O.numThreads
   threads: run the script with ``yade -j1`` and ``-j2`` for the speed-up); ``determinism``: a hash
   of all velocities after 5 coloured steps, which must not depend on the thread count.
 - ``stage``: where the time of an ordinary step goes (collider, InteractionLoop = geometry and
   physics functors, and the integrator's stages), at the default tolerance, on the block and,
   with ``--snapshot``, on pile states rebuilt from a pile run's snapshots (warm-started steps),
-  with the pile's default solver (momentum, slab sweep ``sweepOrder=5``, parallel over slabs; its
+  with the pile's default solver (momentum, slab sweep ``schedule='slabs'``, parallel over slabs; its
   velocity hash after the timed steps must not depend on the thread count) and with the height
   order, plain Gauss–Seidel, its general path and ω = 1.8, and the coloured sweep: sweeps per step
   and cost against contacts. ``--pile-variants`` picks the variants (large states: plain GS takes
@@ -25,12 +25,8 @@ Measurements (one run, one machine: compare rows of the same run, as ratios):
 Each row records machine, threads, commit and date.
 """
 import argparse
-import csv
-import datetime
 import hashlib
 import os
-import platform
-import subprocess
 import sys
 import time
 
@@ -41,6 +37,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), 
 import yadecd
 from yadecd import scenes, pile  # noqa: E402
 from yadecd.export import fclib  # noqa: E402
+from yadecd.io import append_csv  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0]))))  # inside YADE __file__ is the yade executable
 
@@ -60,11 +57,11 @@ parser.add_argument('--no-block-steps', action='store_true', help='on the blocks
 args = parser.parse_args(sys.argv[1:])
 
 PILE_VARIANTS = {  # the default row ('CD') is the pile's default solver: momentum, slab sweep
-    'height': ('CD height order', dict(sweepOrder=1)),
-    'plain': ('CD plain GS', dict(momentum=False, sweepOrder=1)),
-    'general': ('CD plain GS general path', dict(momentum=False, sphereFastPath=False, sweepOrder=1)),
-    'relaxation': ('CD plain GS relaxation 1.8', dict(momentum=False, relaxation=1.8, sweepOrder=1)),
-    'coloured': ('CD coloured', dict(sweepOrder=4)),
+    'height': ('CD height order', dict(schedule='height')),
+    'plain': ('CD plain GS', dict(momentum=False, schedule='height')),
+    'general': ('CD plain GS general path', dict(momentum=False, sphereFastPath=False, schedule='height')),
+    'relaxation': ('CD plain GS relaxation 1.8', dict(momentum=False, relaxation=1.8, schedule='height')),
+    'coloured': ('CD coloured', dict(schedule='colours')),
 }
 unknown = set(v for v in args.pile_variants.split(',') if v) - set(PILE_VARIANTS)
 if unknown:
@@ -72,34 +69,14 @@ if unknown:
 K1, K2 = (5, 15) if args.quick else (20, 120)
 
 
-def machine():
-    model = platform.processor() or platform.machine()
-    try:
-        with open('/proc/cpuinfo') as f:
-            model = next(l.split(':', 1)[1].strip() for l in f if l.startswith('model name'))
-    except (OSError, StopIteration):
-        pass
-    return '%s, %d cores' % (model, os.cpu_count())
-
-
-def commit():
-    try:
-        return subprocess.run(['git', '-C', REPO, 'rev-parse', '--short', 'HEAD'], capture_output=True, text=True).stdout.strip()
-    except OSError:
-        return ''
-
-
-COMMON = dict(machine=machine(), threads=O.numThreads, commit=commit(), date=datetime.date.today().isoformat())
+COMMON = dict(threads=O.numThreads)
 FIELDS = list(COMMON) + ['kind', 'scene', 'bodies', 'contacts', 'method', 'sweeps', 'quantity', 'value', 'unit']
-os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-with open(args.out, 'w', newline='') as f:  # rows are appended as they come: a crash loses nothing
-    csv.DictWriter(f, fieldnames=FIELDS).writeheader()
+append_csv(args.out, None, FIELDS, start=True)   # rows are appended as they come: a crash loses nothing
 
 
 def record(**row):
     row = dict(COMMON, **row)
-    with open(args.out, 'a', newline='') as f:
-        csv.DictWriter(f, fieldnames=FIELDS).writerow(row)
+    append_csv(args.out, row, FIELDS)
     print('  '.join('%s=%s' % (k, ('%.4g' % v) if isinstance(v, float) else v) for k, v in row.items() if k not in COMMON), flush=True)
 
 
@@ -198,10 +175,10 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     t = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD', quantity='time per contact-sweep', value=t / n * 1e9, unit='ns')
     print('  general/fast path time per contact-sweep: %.2f' % (tg / t))
-    cd.sweepOrder = 4  # coloured, parallel with O.numThreads threads
+    cd.schedule = 'colours'  #, parallel with O.numThreads threads
     tc = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD coloured', quantity='time per contact-sweep', value=tc / n * 1e9, unit='ns')
-    cd.sweepOrder = 1
+    cd.schedule = 'height'
     cd.momentum = True  # a sweep plus the momentum extrapolation
     tm = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD momentum', quantity='time per contact-sweep', value=tm / n * 1e9, unit='ns')
@@ -214,7 +191,7 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
         continue
     breakdown('fcc_block', 3 if args.quick else 10)
     # determinism: a fixed coloured run from the same scene, hashed (compare across -j)
-    scenes.fcc_block(target / 6.2, warnUnconverged=False, sweepOrder=4, maxIter=200)
+    scenes.fcc_block(target / 6.2, warnUnconverged=False, schedule='colours', maxIter=200)
     O.run(5, True)
     digest = velocity_digest()
     record(kind='determinism', scene='fcc_block', bodies=len(O.bodies), contacts=yadecd.integrator().nContacts, method='CD coloured',
@@ -239,7 +216,7 @@ for snapshot in args.snapshot:
     cd = yadecd.integrator()  # determinism: the default solver's velocities after the timed steps (compare across -j)
     record(kind='determinism', scene=label, bodies=len(O.bodies), contacts=cd.nContacts, method='CD',
            quantity='sha1 of velocities after %d steps' % args.pile_steps, value=velocity_digest(),
-           unit='sweepOrder %d, interface %d contacts' % (cd.sweepOrder, cd.nInterface))
+           unit='schedule %s, interface %d contacts' % (cd.schedule, cd.nInterface))
     # the same steps again: height order, plain Gauss–Seidel, general path, over-relaxation, coloured sweep
     for key in [v for v in args.pile_variants.split(',') if v]:
         method, attrs = PILE_VARIANTS[key]

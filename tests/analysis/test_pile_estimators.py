@@ -220,8 +220,8 @@ class TestDip(unittest.TestCase):
                 dict(epoch='feed', n_grains=14000, dip_D=0.5, dip_ci95=[0.1, 0.9]),
                 dict(epoch='relaxed', n_grains=300, dip_D=1.0, dip_ci95=[None, None]),
                 dict(epoch='relaxed', n_grains=1000, dip_D=1.0, dip_ci95=[float('nan'), float('nan')])]
-        self.assertEqual(pea._single_pile_dips(recs, 'relaxed'), [(14000, 0.44, 0.12, 0.76)])
-        self.assertEqual(pea._single_pile_dips(recs, 'feed'), [(14000, 0.5, 0.1, 0.9)])
+        self.assertEqual(pea.single_pile_dips(recs, 'relaxed'), [(14000, 0.44, 0.12, 0.76)])
+        self.assertEqual(pea.single_pile_dips(recs, 'feed'), [(14000, 0.5, 0.1, 0.9)])
 
 
 def layered_snapshot(layer_incl_deg, n=4000, seed=0):

@@ -103,7 +103,7 @@ class TestEnsembleEpochs(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, '--dt'):
             ens.option_value(['--dt'], '--dt', 2e-4)
         # 1000 grains at 100 per second with h = 1e-3: one grain every 10 steps, feed ends at 10 s
-        cmd = ens._command('/repo', '/run', {'n_grains': 1000, 'seed': 1}, {'relax': 1.0, 'options': ['--rate', '100', '--dt', '1e-3']},
+        cmd = ens.run_command('/repo', '/run', {'n_grains': 1000, 'seed': 1}, {'relax': 1.0, 'options': ['--rate', '100', '--dt', '1e-3']},
                            False)
         self.assertEqual(cmd[cmd.index('--epochs') + 1], '5.0000,10.0000,11.0000')
         self.assertEqual(ens.feed_time(1000, 200.0, 1e-3), ens.feed_time(1000, 200.0, 2e-4))

@@ -185,11 +185,12 @@ class TestMomentum(unittest.TestCase):
 
 
 PARALLEL_RUN = """
-import hashlib, numpy as np
+import hashlib, sys, numpy as np
+sys.path.insert(0, %r)
 from yade import O
 from yadecd import scenes
 import yadecd
-scenes.fcc_block(1400, sweepOrder=%d, maxIter=40, warnUnconverged=False, parallelMinContacts=0)
+scenes.fcc_block(1400, schedule=%r, maxIter=40, warnUnconverged=False, parallelMinContacts=0)
 O.run(3, True)
 cd = yadecd.integrator()
 v = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
@@ -197,7 +198,7 @@ print('RESULT', O.numThreads, cd.nColours, cd.nInterface, cd.nContacts, hashlib.
 """
 
 
-def run_with_threads(sweep_order, threads):
+def run_with_threads(schedule, threads):
     """PARALLEL_RUN in a fresh YADE with the given thread count (yade -jN): the fields of its
     RESULT line (threads, colours, interface contacts, contacts, velocity hash)."""
     import subprocess
@@ -205,7 +206,7 @@ def run_with_threads(sweep_order, threads):
     import yade.config
     exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
     with tempfile.NamedTemporaryFile('w', suffix='.py', delete=False) as f:
-        f.write(PARALLEL_RUN % sweep_order)
+        f.write(PARALLEL_RUN % (os.path.join(REPO, 'py'), schedule))
     try:
         res = subprocess.run([exe, '-j%d' % threads, '-n', '-x', f.name], capture_output=True, text=True, timeout=300)
     finally:
@@ -217,12 +218,12 @@ def run_with_threads(sweep_order, threads):
 
 
 class TestColouredSweep(unittest.TestCase):
-    """sweepOrder=4: colour by colour, contacts of a colour in parallel."""
+    """schedule='colours': colour by colour, contacts of a colour in parallel."""
 
     def test_colours_share_no_body_and_column_is_exact(self):
         """A column of 12 at rest: colours alternate along the stack (2 colours), and the solve
         still gives every contact force exactly (floor: the weight, to 1e-9)."""
-        sc = scenes.column(12, sweepOrder=4, tolerance=1e-12, maxIter=200000)
+        sc = scenes.column(12, schedule='colours', tolerance=1e-12, maxIter=200000)
         O.step()
         cd = yadecd.integrator()
         self.assertTrue(cd.converged)
@@ -235,7 +236,7 @@ class TestColouredSweep(unittest.TestCase):
         swept in parallel) ends with bit-identical velocities."""
         out = {}
         for j in (1, 2):
-            threads, colours, _, contacts, digest = run_with_threads(4, j)
+            threads, colours, _, contacts, digest = run_with_threads('colours', j)
             self.assertEqual(int(threads), j)
             self.assertGreater(int(contacts) / int(colours), 64)  # colours big enough to go parallel
             out[j] = digest
@@ -243,7 +244,7 @@ class TestColouredSweep(unittest.TestCase):
 
 
 class TestSlabSweep(unittest.TestCase):
-    """sweepOrder=5: slabs swept upwards in parallel, then the interface between them."""
+    """schedule='slabs': slabs swept upwards in parallel, then the interface between them."""
 
     def columns(self, n_columns, height, **opts):
         """Separate columns of spheres on a wall, in a row along x: no body touches two of them.
@@ -261,7 +262,7 @@ class TestSlabSweep(unittest.TestCase):
     def test_separate_columns_need_no_interface_and_are_exact(self):
         """Four columns of 10, two slabs: each slab holds two whole columns (no interface), and
         every floor force is the column's weight to 1e-9."""
-        m = self.columns(4, 10, sweepOrder=5, slabs=2, tolerance=1e-12, maxIter=200000)
+        m = self.columns(4, 10, schedule='slabs', slabs=2, tolerance=1e-12, maxIter=200000)
         O.step()
         cd = yadecd.integrator()
         self.assertTrue(cd.converged)
@@ -278,24 +279,24 @@ class TestSlabSweep(unittest.TestCase):
         O.run(250, True)
         O.saveTmp('slabs')
         out = {}
-        for order in (1, 5):
+        for order in ('height', 'slabs'):
             O.loadTmp('slabs')
             cd = yadecd.integrator()
-            cd.sweepOrder, cd.slabs = order, 3
+            cd.schedule, cd.slabs = order, 3
             O.step()
             self.assertTrue(cd.converged)
-            if order == 5:
+            if order == 'slabs':
                 self.assertGreater(cd.nInterface, 0)
                 self.assertLess(cd.nInterface, cd.nContacts)
             out[order] = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
-        self.assertLess(np.abs(out[5] - out[1]).max(), 1e-9 * max(np.abs(out[1]).max(), 1e-3))
+        self.assertLess(np.abs(out['slabs'] - out['height']).max(), 1e-9 * max(np.abs(out['height']).max(), 1e-3))
 
     def test_bit_identical_for_any_thread_count(self):
         """The same slab run with 1 and 2 threads (yade -j1, -j2; slabs large enough to be swept
         in parallel) ends with bit-identical velocities."""
         out = {}
         for j in (1, 2):
-            threads, _, interface, contacts, digest = run_with_threads(5, j)
+            threads, _, interface, contacts, digest = run_with_threads('slabs', j)
             self.assertEqual(int(threads), j)
             self.assertGreater(int(contacts) - int(interface), 512)  # slabs big enough to go parallel
             self.assertGreater(int(interface), 0)

@@ -124,7 +124,7 @@ int main(int argc, char** argv)
 		if (schedule >= 0) p.schedule = schedule;
 		if (slabs >= 0) p.slabs = slabs;
 		if (momentum >= 0) p.momentum = momentum;
-		if (sphere >= 0) p.sphereKernel = sphere;
+		if (sphere >= 0) p.sphereFastPath = sphere;
 		if (tolerance > 0) p.tolerance = tolerance;
 		if (corrMomentum >= 0) p.correctionMomentum = corrMomentum;
 		if (parallelMin >= 0) p.parallelMinContacts = parallelMin;
@@ -140,7 +140,7 @@ int main(int argc, char** argv)
 			ns              = (t2 - t1) / (k2 - k1) / double(step.contacts) * 1e9;
 		}
 		std::printf("%s: %zu bodies, %ld contacts; schedule %d, slabs %d, momentum %d, sphere kernel %d, %d thread(s)\n", file.c_str(),
-		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, int(p.momentum), int(p.sphereKernel), threads);
+		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, int(p.momentum), int(p.sphereFastPath), threads);
 		std::printf("  step at the file's tolerance %g: %d sweeps (residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
 		            double(p.tolerance), step.sweeps, step.residual, step.correctionSweeps, step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
 		if (timeSweeps) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
@@ -163,7 +163,7 @@ int main(int argc, char** argv)
 			std::ofstream out(csv, std::ios::app);
 			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
-			    << int(p.sphereKernel) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
+			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
 			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << '\n';
 		}

@@ -125,7 +125,7 @@ namespace cd {
 		int      schedule = 1;         // Schedule::Kind
 		int      slabs = 2;
 		bool     momentum = true;
-		bool     sphereKernel = true;  // sphereFastPath
+		bool     sphereFastPath = true;
 		bool     recordResidual = false;
 		Real     positionTolerance = 1e-6;
 		int      maxProjectionIter = 200;

@@ -80,7 +80,7 @@ namespace cd {
 		o << "params " << p.h;
 		put(o, p.up);
 		o << ' ' << p.tolerance << ' ' << p.maxIter << ' ' << p.checkEvery << ' ' << p.relaxation << ' ' << p.schedule << ' ' << p.slabs << ' '
-		  << int(p.momentum) << ' ' << int(p.sphereKernel) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter
+		  << int(p.momentum) << ' ' << int(p.sphereFastPath) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter
 		  << (p.correctionMomentum ? " 1" : "") << '\n'; // an optional trailing flag: absent means 0
 		o << "bodies " << solver.bodies.size() << '\n';
 		for (size_t id = 0; id < solver.bodies.size(); ++id) {
@@ -139,7 +139,7 @@ namespace cd {
 			p.schedule          = l.get<int>();
 			p.slabs             = l.get<int>();
 			p.momentum          = l.get<int>() != 0;
-			p.sphereKernel      = l.get<int>() != 0;
+			p.sphereFastPath      = l.get<int>() != 0;
 			p.positionTolerance = l.get<Real>();
 			p.maxProjectionIter = l.get<int>();
 			// files written before the correction had momentum end here: they were solved without it

@@ -7,7 +7,7 @@
 // with ContactDynamicsIntegrator.problemFile; scripts/core_problems.py makes the test set.
 //
 //   cdproblem 1
-//   params h ux uy uz tolerance maxIter checkEvery relaxation schedule slabs momentum sphereKernel positionTolerance maxProjectionIter
+//   params h ux uy uz tolerance maxIter checkEvery relaxation schedule slabs momentum sphereFastPath positionTolerance maxProjectionIter
 //          [1]   (correctionMomentum; absent: 0, as in files written before it existed)
 //   bodies N
 //   body id dynamic isoInvM isoInvI v(3) w(3) invM(3) invI(9, row-major) vi(3) wi(3)        (N lines)

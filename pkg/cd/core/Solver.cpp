@@ -60,7 +60,7 @@ namespace cd {
 				c.s               = Vector3r(c.en * Ui[0], c.et * Ui[1], c.et * Ui[2]);
 			}
 			contacts.state[k].r = c.frame * c.warmStart; // warm start, re-expressed in the new frame
-			buildSphereRow(k, p.sphereKernel);
+			buildSphereRow(k, p.sphereFastPath);
 			// residual scale: free local velocities of the contacts that would close without an
 			// impulse (q_N < 0); far gap contacts, whose offsets 2 g_m/h are large, do not dilute it
 			const Vector3r q = c.A.cwiseProduct(localVelocity(k) + c.s);

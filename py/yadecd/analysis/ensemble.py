@@ -332,7 +332,7 @@ def fig_slope(stats, records, path):
     return pf.save_figure(fig, path)
 
 
-def _single_pile_dips(records, epoch):
+def single_pile_dips(records, epoch):
     """(grains, D, low, high) of the sizes that have exactly one pile at ``epoch``, with that
     pile's own 95 % interval (over sectors): no spread over seeds exists for them."""
     by_size = {}
@@ -365,7 +365,7 @@ def fig_dip(stats, records, path):
             xs, ds, los, his = map(np.array, (xs, ds, los, his))
             ax.errorbar(xs, ds, yerr=[ds - los, his - ds], fmt='o', color=colour, capsize=3,
                         label='%s: pooled over seeds, 95%% interval' % epoch)
-        lone = _single_pile_dips(records, epoch)   # a size with one pile: that pile's own interval
+        lone = single_pile_dips(records, epoch)   # a size with one pile: that pile's own interval
         if lone:
             x, d, lo, hi = map(np.array, zip(*lone))
             ax.errorbar(x * (1 + 2 * shift), d, yerr=[d - lo, hi - d], fmt='d', color=colour, mfc='none', capsize=3,

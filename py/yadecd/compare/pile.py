@@ -8,6 +8,8 @@ import shutil
 
 import numpy as np
 
+from ..io import append_csv
+
 CASES = {
     'cd': ('CD, tolerance 1e-3', dict(method='CD', tolerance=1e-3)),
     'cd_plain': ('CD, tolerance 1e-3, plain Gauss–Seidel', dict(method='CD', tolerance=1e-3, momentum=False)),
@@ -129,16 +131,14 @@ def main(opts, repo):
             rows = list(csv.DictReader(f))
     else:
         rows = []
-        with open(csv_path, 'w', newline='') as f:
-            csv.DictWriter(f, fieldnames=FIELDS).writeheader()
+        append_csv(csv_path, None, FIELDS, start=True)
         for key in [k for k in opts.cases.split(',') if k]:
             if key not in CASES:
                 raise SystemExit('unknown case %r (known: %s)' % (key, ', '.join(CASES)))
             print('=== %s' % CASES[key][0], flush=True)
             row = run_case(key, opts)
             rows.append({k: str(v) for k, v in row.items()})
-            with open(csv_path, 'a', newline='') as f:
-                csv.DictWriter(f, fieldnames=FIELDS).writerow(row)
+            append_csv(csv_path, row, FIELDS)
             print('  ' + ', '.join('%s=%s' % (k, ('%.4g' % v) if isinstance(v, float) else v) for k, v in row.items()), flush=True)
     png = plot(rows, opts)
     if opts.docs:

@@ -79,7 +79,7 @@ def run_once(scene, method='CD', case=None, dt=None, tolerance=1e-6, maxIter=100
             en = 1.0
         cd = set_cd(dt=dt, tolerance=tolerance, maxIter=maxIter, relaxation=relaxation, momentum=momentum)
         row.update(law='CD', dt=O.dt, tolerance=tolerance, maxIter=maxIter, relaxation=cd.relaxation,
-                   sweepOrder=cd.sweepOrder)
+                   schedule=cd.schedule)
     elif method == 'MD':
         if en is None:
             en = getattr(sc, 'en', 1.0) if law == 'hertz' else None

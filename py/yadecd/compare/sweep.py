@@ -106,7 +106,7 @@ def plan(quick, only=None):
 
 
 FIELDS = ['scene', 'case', 'method', 'law', 'group', 'dt', 'young', 'safety', 'damping', 'en', 'tolerance',
-          'maxIter', 'relaxation', 'sweepOrder', 'status', 'error', 'force_error', 'vel_error', 'pos_error', 'restitution', 'overlap_max_rel',
+          'maxIter', 'relaxation', 'schedule', 'status', 'error', 'force_error', 'vel_error', 'pos_error', 'restitution', 'overlap_max_rel',
           'overlap_mean_rel', 'overlap_final_rel', 'energy_drift', 'sim_time', 'steps', 'wall_s',
           'wall_per_sim_s', 'repeats', 'sweeps_total', 'sweeps_per_step', 'unconverged_steps', 't_settle_0.01',
           'wall_settle_0.01', 't_settle_0.001', 'wall_settle_0.001', 'cd_build', 'note']
@@ -139,16 +139,19 @@ def cd_build():
         return hashlib.sha1(f.read()).hexdigest()[:10]
 
 
-def run_all(opts):
-    """Run every planned case not yet in the CSV (``opts.resume``), appending rows as they come."""
-    runs = plan(opts.quick, opts.scenes)
+def run_all(csv_path, quick=False, scenes=None, resume=False, dry_run=False, momentum=False, max_wall=120.0):
+    """Run every planned case (:func:`plan`) into the CSV ``csv_path``, appending rows as they
+    come; with ``resume``, only the cases not yet in it. ``dry_run`` lists the runs only;
+    ``momentum`` runs CD with the engine's momentum (the comparison's own protocol pins plain
+    Gauss–Seidel); ``max_wall`` [s] stops any single run."""
+    runs = plan(quick, scenes)
     rows = []
     done = set()
-    if opts.resume and os.path.exists(opts.csv):
-        with open(opts.csv) as f:
+    if resume and os.path.exists(csv_path):
+        with open(csv_path) as f:
             rows = list(csv.DictReader(f))
         done = {key(r['scene'], r['case'], r['method'], r) for r in rows}
-    os.makedirs(os.path.dirname(os.path.abspath(opts.csv)), exist_ok=True)
+    os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
     todo = []
     for scene, case, method, p in runs:
         p = dict(p)
@@ -160,11 +163,11 @@ def run_all(opts):
         if key(scene, case_label(scene, case), method, p) not in done:
             todo.append((scene, case, method, p))
     print('%d runs to do (%d kept)' % (len(todo), len(rows)))
-    if opts.dry_run:
+    if dry_run:
         for t in todo:
             print(t)
         return rows
-    write = open(opts.csv, 'w', newline='')
+    write = open(csv_path, 'w', newline='')
     w = csv.DictWriter(write, fieldnames=FIELDS, extrasaction='ignore')
     w.writeheader()
     w.writerows(rows)
@@ -176,9 +179,9 @@ def run_all(opts):
         p = dict(p)
         group = p.pop('group', 'accuracy')
         t0 = time.time()
-        if method == 'CD' and opts.momentum:
+        if method == 'CD' and momentum:
             p = dict(p, momentum=True)
-        r = compare.run(scene, method, case, max_wall=opts.max_wall, **p)
+        r = compare.run(scene, method, case, max_wall=max_wall, **p)
         r['group'] = group
         r['cd_build'] = build0 if method == 'CD' else ''
         if method == 'CD' and n % 20 == 0 and cd_build() != build0:
@@ -192,7 +195,7 @@ def run_all(opts):
             r['error'], r['overlap_max_rel'], r['wall_per_sim_s'], time.time() - t0))
         sys.stdout.flush()
     write.close()
-    print('saved', opts.csv, '(%.0f s)' % (time.time() - t_start))
+    print('saved', csv_path, '(%.0f s)' % (time.time() - t_start))
     return rows
 
 
@@ -479,23 +482,22 @@ def figures(rows, figs):
     return written
 
 
-def main(opts):
-    """Run (or with ``opts.plot_only`` reload) the sweep, then write the summary next to the CSV
-    and the charts into ``opts.figs``. ``opts``: quick, csv, figs, scenes, resume, plot_only,
-    dry_run, momentum, max_wall (the script's options). Returns the exit status."""
-    if opts.plot_only:
-        with open(opts.csv) as f:
+def sweep(csv_path, figs, plot_only=False, dry_run=False, **run_options):
+    """Run the sweep (:func:`run_all` with ``run_options``), or with ``plot_only`` reload it from
+    ``csv_path``, then write its summary next to the CSV and its charts into ``figs``."""
+    if plot_only:
+        with open(csv_path) as f:
             rows = list(csv.DictReader(f))
     else:
-        rows = [{k: ('' if v is None else v) for k, v in r.items()} for r in run_all(opts)]
+        rows = [{k: ('' if v is None else v) for k, v in r.items()} for r in run_all(csv_path, dry_run=dry_run, **run_options)]
         rows = [{k: str(v) for k, v in r.items()} for r in rows]
-    if not opts.dry_run and rows:
+    if not dry_run and rows:
         s = summary(rows)
-        out = os.path.splitext(opts.csv)[0] + '_summary.md'
+        out = os.path.splitext(csv_path)[0] + '_summary.md'
         with open(out, 'w') as f:
             f.write(s)
         print(s)
         print('saved', out)
-        for p in figures(rows, opts.figs):
+        for p in figures(rows, figs):
             print('saved', p)
-    return 0
+    return rows

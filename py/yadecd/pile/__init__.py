@@ -1,6 +1,6 @@
 """Moreau's 3D sand pile (paper §IV.2), built with the Contact Dynamics engine.
 
-Protocol (defaults are the paper's, :data:`protocol.DEFAULTS`; SI units inside):
+Protocol (defaults are the paper's, :data:`protocol.PROTOCOL`; SI units inside):
 
 - grains: spheres with diameters uniform in [0.25, 0.5] cm, density 1000 kg/m³ (inferred from
   the paper's bulk density 0.615 g/cm³ at a packing fraction near 0.6);
@@ -37,7 +37,8 @@ import importlib
 _WHERE = {
     'protocol': ('DEFAULTS', 'expected_base_radius', 'feed_end_time', 'snapshot_times', 'RESUME_MAY_CHANGE',
                  'BRANCH_MAY_CHANGE', 'epoch_list', 'check_params', 'disk_need', 'creation_period', 'feed_time',
-                 'solver_options', 'engine_options'),
+                 'engine_options', 'PROTOCOL', 'SOLVER_DEPARTURES', 'SOLVER_OPTIONS', 'RENAMED', 'upgrade',
+                 'read_run_json', 'solver_defaults', 'defaults'),
     'build': ('paving', 'build_scene', 'add_grain', 'set_engines', 'solver_stats', 'scene_from_snapshot', 'cone_state',
               'separating_dilation', 'creation_height', 'Feeder', 'Clock'),
     'write': ('snapshot',),

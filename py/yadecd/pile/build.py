@@ -12,7 +12,7 @@ from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
 from .. import engines
 from ..scenes import material
-from .protocol import DEFAULTS, expected_base_radius
+from .protocol import defaults, engine_options, expected_base_radius, read_run_json
 from .write import snapshot
 
 
@@ -77,12 +77,7 @@ def set_engines(p):
     soft-contact list with ``O.dt = md_safety·PWaveTimeStep()`` (then written back to p['dt'])."""
     method = p.get('method', 'CD')
     if method == 'CD':
-        O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], tolerance=p['tolerance'], maxIter=p['max_iter'],
-                            relaxation=p.get('relaxation', 1.0), momentum=bool(p.get('momentum', True)),
-                            correctionMomentum=bool(p.get('correction_momentum', False)),
-                            parallelMinContacts=int(p.get('parallel_min_contacts', DEFAULTS['parallel_min_contacts'])),
-                            sweepOrder=int(p.get('sweep_order', 1)),
-                            warnUnconverged=False)
+        O.engines = engines(gravity=(0, 0, -p['g']), en=p['en'], warnUnconverged=False, **engine_options(p))
         O.dt = p['dt']
     elif method == 'MD':
         from ..compare.md import md_engines
@@ -108,12 +103,10 @@ def scene_from_snapshot(path, **overrides):
     flags; the run's parameters from the ``run.json`` beside it when present, ``overrides``
     on top). Angular velocities and impulses are not in snapshots: they restart at zero.
     Returns the parameter dict (the snapshot time is in its ``time``; O.time restarts at 0)."""
-    import json
-    p = dict(DEFAULTS)
+    p = defaults()
     run_json = os.path.join(os.path.dirname(os.path.abspath(path)), 'run.json')
     if os.path.exists(run_json):
-        with open(run_json) as f:
-            p.update({k: v for k, v in json.load(f).items() if k in DEFAULTS})
+        p.update({k: v for k, v in read_run_json(run_json).items() if k in p})
     p.update(overrides)
     snap = np.load(path)
     O.reset()
@@ -144,13 +137,13 @@ def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=
     slope and grows by that factor, about 0.3 %), so that no two grains overlap and the state
     settles under gravity like a deposited one: the state to start soft-contact MD from.
 
-    It stands in for the end state of the paper's deposition (14 000 grains, about 33 000
-    contacts), which deposition would take about 40 h to reach here (docs/performance.md). Its
-    history differs (no layers, no feeding, a denser start): a benchmark state, not a result."""
+    It stands in for the end state of the paper's deposition (14 000 grains), which deposition
+    takes hours to reach (docs/performance.md). Its history differs (no layers, no feeding, a
+    denser start): a benchmark state, not a result."""
     from yade import pack
-    p = dict(DEFAULTS)
+    p = defaults()
     p.update({k: v for k, v in overrides.items() if v is not None})
-    unknown = set(p) - set(DEFAULTS)
+    unknown = set(p) - set(defaults())
     if unknown:
         raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
     if n_grains < 10 or not (5.0 <= slope_deg <= 40.0) or settle < 0:

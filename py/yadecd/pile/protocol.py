@@ -5,11 +5,26 @@ Imports without YADE (the ensemble driver reads it under plain Python).
 """
 
 import math
+
 import numpy as np
 
+#: The solver options a pile run sets, by their pile names (the engine attribute's name in
+#: snake_case). :class:`ContactDynamicsIntegrator` defines each one, its default and its
+#: validation (:func:`yadecd.solver_options`); the pile states only where it departs
+#: (:data:`SOLVER_DEPARTURES`).
+SOLVER_OPTIONS = {'tolerance': 'tolerance', 'max_iter': 'maxIter', 'relaxation': 'relaxation', 'momentum': 'momentum',
+                  'correction_momentum': 'correctionMomentum', 'schedule': 'schedule',
+                  'parallel_min_contacts': 'parallelMinContacts'}
 
+#: Where the pile departs from the engine's defaults (why: docs/pile.md, "Solver settings").
+SOLVER_DEPARTURES = dict(
+    tolerance=1e-3,      # the forces a pile's analyses read need no more (docs/pile.md, "Force accuracy")
+    max_iter=2000,
+    schedule='slabs',    # parallel on two threads, and keeps the upward order piles need
+)
 
-DEFAULTS = dict(
+#: The protocol's own parameters, the paper's values (SI units; the paper's cm in comments).
+PROTOCOL = dict(
     n_grains=14000,      # grains to create
     d_min=0.0025,        # m   (0.25 cm)
     d_max=0.0050,        # m   (0.50 cm)
@@ -26,13 +41,6 @@ DEFAULTS = dict(
     epochs='',           # comma-separated snapshot times [s]; '' = every snap_every
     snap_every=2.0,      # s between snapshots when epochs is empty
     checkpoint_every=60.0,  # wall-clock seconds between checkpoints
-    tolerance=1e-3,      # Gauss–Seidel relative residual (see docs/pile.md for its effect on forces)
-    max_iter=2000,
-    relaxation=1.0,      # Gauss–Seidel over-relaxation ω (with momentum off, 1.8 halves the sweeps on piles)
-    momentum=True,       # Nesterov momentum (piles: 3.9–5.5× fewer sweeps, 1.8–2.5× faster steps; docs/performance.md)
-    correction_momentum=False,  # momentum in the position correction too: 4x fewer correction sweeps; opt-in until checked on whole piles (docs/performance.md)
-    sweep_order=5,       # Gauss–Seidel order: 5 slabs (parallel with yade -j2, same results for any thread count), 1 height
-    parallel_min_contacts=10000,  # fewer contacts: sweeps on one thread (same results; 2 threads gain nothing there and collapse beside another busy process)
     vtk=False,           # also export VTK files (ParaView) at snapshots
     stop_time=0.0,       # s; > 0: checkpoint and stop there (continue later with resume)
     method='CD',         # 'CD', or 'MD': YADE's soft contacts (linear spring–slider) on the same protocol
@@ -40,6 +48,58 @@ DEFAULTS = dict(
     md_safety=0.5,       # MD only: O.dt = md_safety·PWaveTimeStep() (replaces dt)
     md_damping=0.2,      # MD only: Cundall's non-viscous damping, as YADE deposition scripts use
 )
+
+#: What a run sets that is not the engine's default: the protocol and the solver's departures.
+#: The full parameter set of a run, with the engine's defaults, is :func:`defaults` (needs YADE).
+DEFAULTS = dict(PROTOCOL, **SOLVER_DEPARTURES)
+
+#: Parameters renamed since earlier releases: old name -> (new name, {old value: new value}).
+#: :func:`upgrade` maps them, so that old ``run.json`` files and tables still load.
+RENAMED = {'sweep_order': ('schedule', {1: 'height', 4: 'colours', 5: 'slabs'})}
+
+
+def upgrade(p):
+    """A copy of the parameter dict ``p`` with the keys of :data:`RENAMED` mapped to their
+    current names and values. Raises ValueError for an old value that has no current one (a
+    retired sweep order, say) or for a parameter given under both names with different values."""
+    out = dict(p)
+    for old, (new, values) in RENAMED.items():
+        if old not in out:
+            continue
+        value = out.pop(old)
+        if value not in values:
+            raise ValueError('pile parameter %s=%r (now %s) has no current value: it must be one of %s'
+                             % (old, value, new, ', '.join('%r' % v for v in values)))
+        if new in out and out[new] != values[value]:
+            raise ValueError('pile parameters %s=%r and %s=%r disagree: give %s only' % (old, value, new, out[new], new))
+        out[new] = values[value]
+    return out
+
+
+def read_run_json(path):
+    """The parameters a ``run.json`` holds, renamed keys mapped (:func:`upgrade`)."""
+    import json
+    with open(path) as f:
+        return upgrade(json.load(f))
+
+
+def solver_defaults():
+    """The engine's defaults of the pile's :data:`SOLVER_OPTIONS`, by pile name (needs YADE)."""
+    from .. import solver_options
+    engine = solver_options()
+    return {key: engine[attr] for key, attr in SOLVER_OPTIONS.items()}
+
+
+def defaults():
+    """Every parameter of a pile run with its default: the engine's solver defaults, overridden
+    by the protocol's :data:`DEFAULTS` (needs YADE)."""
+    return dict(solver_defaults(), **DEFAULTS)
+
+
+def engine_options(p):
+    """The solver options of the parameter dict ``p`` as :class:`ContactDynamicsIntegrator`
+    attributes (``max_iter`` -> ``maxIter``...)."""
+    return {attr: p[key] for key, attr in SOLVER_OPTIONS.items() if key in p}
 
 
 def expected_base_radius(n, d_min, d_max, slope_deg=26.0, packing=0.6):
@@ -85,11 +145,14 @@ def epoch_list(epochs):
 
 
 def check_params(p):
-    """Raise ValueError naming the first bad parameter of a pile run (before any work is done)."""
-    unknown = set(p) - set(DEFAULTS)
+    """Raise ValueError naming the first bad parameter of a pile run (before any work is done).
+    The protocol's parameters are checked here; the solver options by the engine itself (one
+    validation: :class:`ContactDynamicsIntegrator` refuses what it cannot do). Needs YADE."""
+    known = defaults()
+    unknown = set(p) - set(known)
     if unknown:
         raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
-    for key, default in DEFAULTS.items():
+    for key, default in known.items():
         v = p[key]
         if isinstance(default, bool):
             ok = isinstance(v, (bool, np.bool_))
@@ -114,12 +177,6 @@ def check_params(p):
         ('relax', p['relax'] >= 0, '>= 0 [s]'),
         ('snap_every', p['snap_every'] > 0, 'positive [s]'),
         ('checkpoint_every', p['checkpoint_every'] > 0, 'positive [s of wall time]'),
-        ('tolerance', 0 < p['tolerance'] < 1, 'in (0, 1)'),
-        ('max_iter', p['max_iter'] >= 1, '>= 1'),
-        ('relaxation', 0 < p['relaxation'] < 2, 'in (0, 2)'),
-        ('sweep_order', p['sweep_order'] in (0, 1, 2, 3, 4, 5), 'one of 0–5'),
-        ('parallel_min_contacts', p['parallel_min_contacts'] >= 0 and int(p['parallel_min_contacts']) == p['parallel_min_contacts'],
-         'an integer >= 0 (0: threads at any size)'),
         ('stop_time', p['stop_time'] >= 0, '>= 0 [s]'),
         ('method', p['method'] in ('CD', 'MD'), "'CD' or 'MD'"),
         ('young', p['young'] > 0, 'positive [Pa]'),
@@ -131,13 +188,19 @@ def check_params(p):
             raise ValueError('pile parameter %s must be %s (got %r)' % (key, what, p[key]))
     if any(t <= 0 for t in epoch_list(p['epochs'])):
         raise ValueError('pile parameter epochs must hold positive times (got %r)' % (p['epochs'],))
+    from yade.wrapper import ContactDynamicsIntegrator
+    for key, attr in SOLVER_OPTIONS.items():
+        try:
+            ContactDynamicsIntegrator(**{attr: p[key]})
+        except Exception as e:   # the engine's own message names the attribute and the reason
+            raise ValueError('pile parameter %s=%r: %s' % (key, p[key], e)) from None
 
 
 def disk_need(p):
     """Bytes a run needs in its directory, estimated from its size: the checkpoints kept (three
-    units at once while one is written; 1000 B per body each, measured 480 on a 100-grain pile,
-    whose grains have fewer contacts than a large pile's) and the snapshots (400 B per body each,
-    measured 125)."""
+    units at once while one is written, 1000 B per body each) and the snapshots (400 B per body
+    each). Both allowances are above the sizes measured on piles (docs/reliability.md), so that
+    a run that starts has room to finish."""
     floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
     d_mean = 0.5 * (p['d_min'] + p['d_max'])
     bodies = p['n_grains'] + 0.55 * (floor_radius / (0.5 * d_mean)) ** 2

@@ -16,14 +16,14 @@ from ..runs import cost as runcost, runstate
 from ..runs.runstate import RunStateError  # noqa: F401 (reachable as yadecd.pile.RunStateError)
 from ..runs.checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .build import Clock, Feeder, add_grain, build_scene, solver_stats
-from .protocol import BRANCH_MAY_CHANGE, DEFAULTS, creation_period, RESUME_MAY_CHANGE, check_params, disk_need, feed_end_time, snapshot_times
+from .protocol import (BRANCH_MAY_CHANGE, RESUME_MAY_CHANGE, check_params, creation_period, defaults, disk_need,
+                       feed_end_time, read_run_json, snapshot_times, upgrade)
 from .write import snapshot
 
 
-# Wall time per simulated second of a fed pile grows as N^ETA_EXPONENT: measured 1.7 at h = 1e-3 s
-# (contacts ∝ N, sweeps per step ∝ N^0.7 in the 14 000- and 5000-grain runs, 1000-5200 grains);
-# the same states solved at h = 2e-4 s need sweeps growing as N^0.5 (docs/performance.md, "The time
-# step at scale"). The larger exponent is kept: a wrong ETA costs little on short runs.
+#: Wall time per simulated second of a fed pile grows as N^ETA_EXPONENT (contacts ∝ N, times the
+#: sweeps per step); the value is the larger of those measured (docs/performance.md, "The time
+#: step at scale"): a wrong ETA costs little on short runs.
 ETA_EXPONENT = 1.7
 
 
@@ -64,14 +64,13 @@ RUN_FILES = ('run.json', 'progress.csv', 'segments.csv', 'checkpoint.json', 'che
 
 
 def _run_json(run_dir, missing):
-    """A run's parameters: its ``run.json`` over DEFAULTS (options added since the run began
+    """A run's parameters: its ``run.json`` (renamed keys mapped) over :func:`defaults` (options added since the run began
     take their defaults). ``missing`` (with one %s for the directory) is the error without it."""
     path = os.path.join(run_dir, 'run.json')
     if not os.path.exists(path):
         raise FileNotFoundError(missing % run_dir)
-    p = dict(DEFAULTS)
-    with open(path) as f:
-        p.update(json.load(f))
+    p = defaults()
+    p.update(read_run_json(path))
     return p
 
 
@@ -98,8 +97,8 @@ class PileRun:
     def start(cls, run_dir, overrides, log=print, overwrite=False):
         """A new run: parameters checked, directory checked (an existing run is never replaced
         unless ``overwrite``), floor and engines built, ``run.json`` written."""
-        p = dict(DEFAULTS)
-        p.update({k: v for k, v in overrides.items() if v is not None})
+        p = defaults()
+        p.update(upgrade({k: v for k, v in overrides.items() if v is not None}))
         check_params(p)
         if has_run(run_dir):
             if not overwrite:
@@ -118,8 +117,8 @@ class PileRun:
         reported and the one before it used). ``overrides`` may only change RESUME_MAY_CHANGE;
         a run killed before its first checkpoint starts again from its ``run.json``."""
         p = _run_json(run_dir, 'nothing to resume in %s: it holds no run.json')
-        given = {k: v for k, v in overrides.items() if v is not None}
-        unknown = set(given) - set(DEFAULTS)
+        given = upgrade({k: v for k, v in overrides.items() if v is not None})
+        unknown = set(given) - set(defaults())
         if unknown:
             raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
         clash = ['%s (run: %r, given: %r)' % (k, p.get(k), v) for k, v in sorted(given.items())
@@ -129,7 +128,7 @@ class PileRun:
                              % (run_dir, ', '.join(clash), ', '.join(RESUME_MAY_CHANGE)))
         p['stop_time'] = 0.0            # a stop applies to the segment it was given for
         p.update({k: v for k, v in given.items() if k in RESUME_MAY_CHANGE})
-        check_params({k: v for k, v in p.items() if k in DEFAULTS})
+        check_params({k: v for k, v in p.items() if k in defaults()})
         preflight(run_dir, p)
         for name in os.listdir(run_dir):      # files a kill left half-written (snapshots, run.json)
             if name.endswith('.tmp') and os.path.isfile(os.path.join(run_dir, name)):
@@ -431,9 +430,9 @@ def branch(src, dest, options, log=print):
     if not os.path.exists(src_json):
         raise FileNotFoundError('nothing to branch from in %s: it holds no run.json' % src)
     with open(src_json) as f:
-        before = dict(DEFAULTS, **json.load(f))
-    options = {k: v for k, v in options.items() if v is not None}
-    unknown = sorted(set(options) - set(DEFAULTS))
+        before = dict(defaults(), **upgrade(json.load(f)))
+    options = upgrade({k: v for k, v in options.items() if v is not None})
+    unknown = sorted(set(options) - set(defaults()))
     if unknown:
         raise ValueError('unknown pile parameters: %s' % ', '.join(unknown))
     clash = ['%s (source: %r, given: %r)' % (k, before.get(k), v) for k, v in sorted(options.items())
@@ -442,7 +441,7 @@ def branch(src, dest, options, log=print):
         raise ValueError('a branch may change only %s; these differ from %s: %s'
                          % (', '.join(BRANCH_MAY_CHANGE), src, ', '.join(clash)))
     changes = {k: v for k, v in options.items() if k in BRANCH_MAY_CHANGE and before.get(k) != v}
-    check_params({k: v for k, v in dict(before, **changes).items() if k in DEFAULTS})
+    check_params({k: v for k, v in dict(before, **changes).items() if k in defaults()})
     if has_run(dest):
         raise FileExistsError('%s already holds a pile run: a branch never replaces one' % dest)
     record = carry(src, dest, log=log)

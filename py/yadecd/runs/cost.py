@@ -2,9 +2,9 @@
 grains, contacts, sweeps, residual, the run's wall time) and ``segments.csv`` (one line per
 segment: when and where it ran). Pure numpy: no YADE.
 
-A long run is carried between machines and sessions, and the machines differ: the same pile
-state cost 52–77 ns per contact-sweep all in on one host and 170–200 on another. Its total wall
-time only means something with that cost beside it, so :func:`cost_windows` gives, per window of
+A long run is carried between machines and sessions, and the machines differ (by a factor of
+about three per contact-sweep between the hosts in docs/performance.md). Its total wall time
+only means something with that cost beside it, so :func:`cost_windows` gives, per window of
 simulated time and per segment, the wall time per simulated second and the **all-in cost per
 contact-sweep**: the window's wall time over Σ steps × contacts × sweeps. Each progress line
 samples the sweeps of one step only (steps vary 300–1300 sweeps), so the estimate is a ratio of

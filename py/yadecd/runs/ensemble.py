@@ -123,7 +123,7 @@ class Ensemble:
         return self.data['runs']
 
 
-def _command(repo, run_dir, rec, plan, resume):
+def run_command(repo, run_dir, rec, plan, resume):
     """scripts/yade command line of one run (one thread)."""
     cmd = [os.path.join(repo, 'scripts', 'yade'), '-j1', '-n', '-x', os.path.join(repo, 'scripts', 'pile.py'),
            '--out', run_dir]
@@ -189,7 +189,7 @@ def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_faile
                 logf = open(os.path.join(run_dir, 'log.txt'), 'a')
                 logf.write('\n=== %s %s\n' % (time.strftime('%Y-%m-%d %H:%M:%S'), 'resume' if resume else 'start'))
                 logf.flush()
-                proc = subprocess.Popen(_command(repo, run_dir, rec, ens.data['plan'], resume), stdout=logf,
+                proc = subprocess.Popen(run_command(repo, run_dir, rec, ens.data['plan'], resume), stdout=logf,
                                         stderr=subprocess.STDOUT, cwd=repo, start_new_session=True)
                 rec.update(state='running', attempts=rec.get('attempts', 0) + 1, started=time.time())
                 active[name] = (proc, logf)

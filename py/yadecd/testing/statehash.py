@@ -39,21 +39,24 @@ def _loose(**opts):
     return scenes.random_loose_packing(n=30, seed=3, **opts)
 
 
-for _order in (1, 4, 5):   # orders 0, 2, 3 retired (measured worse; refused by the engine)
-    _case('loose30_order%d' % _order, _loose, 300, sweepOrder=_order)
+# case names keep the schedules' integer codes (1 height, 4 colours, 5 slabs): they are the keys of
+# tests/data/state_hashes.json
+_SCHEDULE = {1: 'height', 4: 'colours', 5: 'slabs'}
 for _order in (1, 4, 5):
-    _case('loose30_order%d_plain' % _order, _loose, 300, sweepOrder=_order, momentum=False)
-    _case('loose30_order%d_general' % _order, _loose, 300, sweepOrder=_order, sphereFastPath=False)
-_case('loose30_relaxation', _loose, 300, sweepOrder=1, momentum=False, relaxation=1.5)
-_case('loose30_check_every4', _loose, 300, sweepOrder=5, checkEvery=4)
-_case('fcc1000_order1', lambda **o: scenes.fcc_block(1000, **o), 5, sweepOrder=1)
-_case('fcc1000_order5', lambda **o: scenes.fcc_block(1000, **o), 5, sweepOrder=5, slabs=4)
+    _case('loose30_order%d' % _order, _loose, 300, schedule=_SCHEDULE[_order])
+for _order in (1, 4, 5):
+    _case('loose30_order%d_plain' % _order, _loose, 300, schedule=_SCHEDULE[_order], momentum=False)
+    _case('loose30_order%d_general' % _order, _loose, 300, schedule=_SCHEDULE[_order], sphereFastPath=False)
+_case('loose30_relaxation', _loose, 300, schedule='height', momentum=False, relaxation=1.5)
+_case('loose30_check_every4', _loose, 300, schedule='slabs', checkEvery=4)
+_case('fcc1000_order1', lambda **o: scenes.fcc_block(1000, **o), 5, schedule='height')
+_case('fcc1000_order5', lambda **o: scenes.fcc_block(1000, **o), 5, schedule='slabs', slabs=4)
 # parallel stages: colours of ≥ 64 contacts, slabs of ≥ 256 inner contacts, with landings (the
 # position correction at work) in the loose 300-grain packing
-_case('fcc1000_order4', lambda **o: scenes.fcc_block(1000, **o), 5, sweepOrder=4)
+_case('fcc1000_order4', lambda **o: scenes.fcc_block(1000, **o), 5, schedule='colours')
 for _order in (1, 4, 5):
     _case('loose300_order%d' % _order, lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
-          sweepOrder=_order)
+          schedule=_SCHEDULE[_order])
 _case('mass_ratio100', lambda **o: scenes.mass_ratio_stack(100.0, **o), 50, tolerance=1e-10)
 _case('binary_restitution', lambda **o: scenes.binary_collision((1.0, 0.2, 0), (-0.5, 0, 0.1), en=0.6, et=0.2,
                                                                 gap=1e-4, offset=0.004), 40)
@@ -62,7 +65,7 @@ _case('pile60', None, 1500)
 # with height, colour and slab schedules, and the fed pile
 for _order in (1, 4, 5):
     _case('loose300_order%d_corrmom' % _order, lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
-          sweepOrder=_order, correctionMomentum=True)
+          schedule=_SCHEDULE[_order], correctionMomentum=True)
 _case('pile60_corrmom', None, 1500, correctionMomentum=True)
 
 
