@@ -5,9 +5,9 @@
     scripts/yade -n -x scripts/compare_cd_md.py --resume     # run only what the CSV lacks
     scripts/yade -n -x scripts/compare_cd_md.py --plot-only  # redraw figures/summary from the CSV
 
-Sweeps, for each scene case (yadecd.cases defines the cases and their exact solutions,
-yadecd.measure the measurements, yadecd.md the MD engines, yadecd.compare one run,
-yadecd.compare_sweep this sweep; docs/compare.md reads the results):
+Sweeps, for each scene case (yadecd.compare.cases defines the cases and their exact solutions,
+yadecd.compare.measure the measurements, yadecd.compare.md the MD engines, yadecd.compare.run one run,
+yadecd.compare.sweep this sweep; docs/compare.md reads the results):
   MD (linear Cundall-Strack, Hertz-Mindlin): Young's modulus x dt safety factor (x PWaveTimeStep,
      0.1 to 5: beyond 1 to find where it fails) x Cundall damping (rest scenes only; 0 for
      dynamic ones) x law; stiffer E (1e10, 1e11) on the dynamic scenes;

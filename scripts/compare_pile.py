@@ -5,7 +5,7 @@ the CD engine and with YADE's linear soft contacts at several stiffnesses, side 
                                               [--cases cd,cd_plain,cd_loose,md_1e6,md_1e7,md_1e8] [--plot-only]
 
 Every case builds the same protocol (same seed, so the same feed positions) and is analysed by
-the same pile analysis (yadecd.pile_figures.analyse). Recorded per case: wall time, steps, wall
+the same pile analysis (yadecd.analysis.report.analyse). Recorded per case: wall time, steps, wall
 time per simulated second, flank slope (none on piles below about 2 cm), chord angle, the former
 slope estimator, apex height, central and peak ground pressure (also over the
 hydrostatic ρ_bulk·g·H), floor load over pile weight, largest and mean grain–grain overlap over

@@ -1,5 +1,5 @@
 """Tilt at which a single grain rolls off the pile's random paving, for the smallest, median and
-largest grain of the protocol (yadecd.rolloff).
+largest grain of the protocol (yadecd.pile.rolloff).
 
     scripts/yade -n -x scripts/paving_rolloff.py [--per-size 20] [--out docs/data/paving_rolloff.json]
 

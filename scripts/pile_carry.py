@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Carry a pile run between machines (yadecd.carry): its portable part, small enough to commit.
+"""Carry a pile run between machines (yadecd.runs.carry): its portable part, small enough to commit.
 
     python3 scripts/pile_carry.py SRC_RUN DEST [--snap-every T]
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """What a pile run's wall time went into: cost per simulated second and all-in cost per
 contact-sweep, per window of simulated time and per segment (host), from the run's own
-progress.csv and segments.csv (module yadecd.runcost).
+progress.csv and segments.csv (module yadecd.runs.cost).
 
     python3 scripts/pile_cost.py RUN_DIR [--window 2] [--out DIR]
 

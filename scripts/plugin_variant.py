@@ -3,7 +3,7 @@
     /usr/bin/python3 scripts/plugin_variant.py BUILD_DIR PREFIX [--throwaway-attribute] [--repo-py]
 
 Compiles the plugin from this repository into BUILD_DIR (with ``--throwaway-attribute``: one more
-serialized attribute in ContactDynamicsIntegrator, the layout change of tests/test_runstate.py),
+serialized attribute in ContactDynamicsIntegrator, the layout change of tests/runs/test_runstate.py),
 then makes PREFIX a YADE prefix of symbolic links to the installed YADE in which the plugin is the
 new build (and, with ``--repo-py``, the ``yadecd`` package is this repository's ``py/yadecd``).
 Run it with ``YADECD_VARIANT_PREFIX=PREFIX scripts/yade ...`` (scripts/yade then sets YADE_PREFIX, from

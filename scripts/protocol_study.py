@@ -7,12 +7,12 @@ at other time steps and tolerances, and their observables compared with the pape
     /usr/bin/python3 scripts/protocol_study.py analyse ROOT --size 1000 \\
         [--reference docs/data/ensemble_runs] [--out docs/data/protocol_study] [--figure docs/figures/protocol_study.png]
 
-``run`` runs one ensemble per setting in ROOT/<setting> (yadecd.ensemble: one thread per pile,
+``run`` runs one ensemble per setting in ROOT/<setting> (yadecd.runs.ensemble: one thread per pile,
 ``--jobs`` piles at a time; calling it again resumes). ``analyse`` compares every setting with the
-reference at the end of the feed and after the relaxation (yadecd.protocol: Welch intervals,
+reference at the end of the feed and after the relaxation (yadecd.analysis.protocols: Welch intervals,
 differences in units of the seed spread); the reference is the paper-setting runs found in
 ROOT/paper plus the stored per-run records of ``--reference`` (runs of the same grain count).
-Settings: yadecd.protocol.SETTINGS.
+Settings: yadecd.analysis.protocols.SETTINGS.
 """
 import argparse
 import json

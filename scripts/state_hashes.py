@@ -1,10 +1,10 @@
-"""Record the engine's state hashes on the cases of ``yadecd.statehash`` for this thread count.
+"""Record the engine's state hashes on the cases of ``yadecd.testing.statehash`` for this thread count.
 
     scripts/yade -j1 -n -x scripts/state_hashes.py --write tests/data/state_hashes.json
     scripts/yade -j2 -n -x scripts/state_hashes.py --write tests/data/state_hashes.json
 
 Each call adds (or replaces) the hashes of its thread count in the file, with the commit and the
-date; run it before a refactor of the solver, and ``tests/test_state_hashes.py`` checks after it
+date; run it before a refactor of the solver, and ``tests/engine/test_state_hashes.py`` checks after it
 that nothing changed. Without ``--write`` it prints the hashes and compares them with the file.
 """
 import argparse

@@ -3,12 +3,13 @@
 #include <core/Scene.hpp>
 #include <core/Aabb.hpp>
 #include <pkg/dem/ScGeom.hpp>
+#include <pkg/common/Box.hpp>
 #include <pkg/common/Facet.hpp>
 #include <pkg/common/Wall.hpp>
 
 namespace yade {
 
-YADE_PLUGIN((Bo1_Sphere_CDAabb)(Ig2_Sphere_Sphere_CDScGeom)(Ig2_Wall_Sphere_CDScGeom)(Ig2_Facet_Sphere_CDScGeom));
+YADE_PLUGIN((Bo1_Sphere_CDAabb)(Ig2_Sphere_Sphere_CDScGeom)(Ig2_Wall_Sphere_CDScGeom)(Ig2_Facet_Sphere_CDScGeom)(Ig2_Box_Sphere_CDScGeom));
 
 namespace {
 	// Two bodies that cannot move (fixed paving grains, walls) never exchange an impulse: no contact.
@@ -115,6 +116,52 @@ bool Ig2_Facet_Sphere_CDScGeom::go(
 	g->contactPoint     = s2.pos + shift2 - (r - 0.5 * pen) * g->normal;
 	g->radius1          = hertzian ? g->radius1 * r / (r + alert) : 2 * r;
 	g->radius2          = r;
+	return true;
+}
+
+bool Ig2_Box_Sphere_CDScGeom::go(
+        const shared_ptr<Shape>&       cm1,
+        const shared_ptr<Shape>&       cm2,
+        const State&                   s1,
+        const State&                   s2,
+        const Vector3r&                shift2,
+        const bool&                    force,
+        const shared_ptr<Interaction>& c)
+{
+	const Vector3r& extents = static_cast<Box*>(cm1.get())->extents;
+	const Real      r       = static_cast<Sphere*>(cm2.get())->radius;
+	// the sphere's centre in the box's axes, computed as YADE's functor does (same inside test)
+	const Matrix3r boxAxisT = s1.ori.toRotationMatrix();
+	const Matrix3r boxAxis  = boxAxisT.transpose();
+	const Vector3r centre   = s2.pos + shift2;
+	const Vector3r local    = boxAxis * (centre - s1.pos);
+	const Vector3r beyond   = local.cwiseAbs() - extents; // > 0: outside that pair of faces
+	const bool     inside   = beyond.maxCoeff() <= 0;
+	if (!c->isReal() && !force) {
+		if (bothObstacles(s1, s2)) return false;
+		// signed distance from the centre to the box: to its closest point outside, minus the
+		// depth below the nearest face inside
+		const Real dist  = inside ? beyond.maxCoeff() : beyond.cwiseMax(Real(0)).norm();
+		const Real alert = ContactDynamicsIntegrator::alertDistance(scene, r, s1.vel.norm() + s2.vel.norm());
+		if (dist - r > alert) return false;
+	}
+	if (!inside || !c->geom) return Ig2_Box_Sphere_ScGeom::go(cm1, cm2, s1, s2, shift2, /*force*/ true, c);
+	// Centre inside, existing contact: YADE would take the nearest face, the opposite one for a
+	// centre past the mid-plane of a thin box (a mirrored contact). Keep the face the previous
+	// normal points out of (the one the sphere came through), with the signed depth below it.
+	ScGeom*        g         = static_cast<ScGeom*>(c->geom.get());
+	const Vector3r prevLocal = boxAxis * g->normal;
+	int            k         = 0;
+	prevLocal.cwiseAbs().maxCoeff(&k);
+	const Real side    = prevLocal[k] >= 0 ? 1 : -1;
+	Vector3r   nLocal  = Vector3r::Zero();
+	nLocal[k]          = side;
+	const Vector3r n   = boxAxisT * nLocal;
+	const Real depth   = extents[k] - side * local[k]; // ≥ 0: the centre's depth below that face
+	const Vector3r pt1 = centre + depth * n;          // on the face
+	const Vector3r pt2 = centre - r * n;              // deepest point of the sphere
+	constexpr Real hertzFac = 1e8;                     // Ig2_Box_Sphere_ScGeom's (private there)
+	g->doIg2Work(0.5 * (pt1 + pt2), r + depth, hertzian ? hertzFac * r : r, r, s1, s2, scene, c, n, shift2, /*newScGeom*/ false, /*avoidGranularRatcheting*/ true);
 	return true;
 }
 

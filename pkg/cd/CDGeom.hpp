@@ -8,11 +8,13 @@
 //
 // (:yref:`ContactDynamicsIntegrator.alertRatio`, :yref:`ContactDynamicsIntegrator.alertSpeedFactor`).
 // YADE's own functors cannot do this: the sphere–sphere one has only a relative detection
-// factor, and the wall and facet ones create nothing before overlap. These subclasses add only
-// the creation test; once a contact exists they run YADE's own geometry unchanged.
+// factor, and the wall, facet and box ones create nothing before overlap. These subclasses add
+// only the creation test; once a contact exists they run YADE's own geometry, but for the signed
+// gap of a sphere centre that the half-step predictor has put behind a wall or inside a box.
 #pragma once
 
 #include <pkg/common/Bo1_Aabb.hpp>
+#include <pkg/dem/Ig2_Box_Sphere_ScGeom.hpp>
 #include <pkg/dem/Ig2_Facet_Sphere_ScGeom.hpp>
 #include <pkg/dem/Ig2_Sphere_Sphere_ScGeom.hpp>
 
@@ -69,5 +71,22 @@ public:
 	// clang-format on
 };
 REGISTER_SERIALIZABLE(Ig2_Facet_Sphere_CDScGeom);
+
+class Ig2_Box_Sphere_CDScGeom : public Ig2_Box_Sphere_ScGeom {
+public:
+	bool go(const shared_ptr<Shape>&, const shared_ptr<Shape>&, const State&, const State&, const Vector3r&, const bool&, const shared_ptr<Interaction>&) override;
+	FUNCTOR2D(Box, Sphere);
+	DEFINE_FUNCTOR_ORDER_2D(Box, Sphere);
+	// clang-format off
+	YADE_CLASS_BASE_DOC(Ig2_Box_Sphere_CDScGeom, Ig2_Box_Sphere_ScGeom,
+		"Box–sphere :yref:`ScGeom` for Contact Dynamics (body 1 is the box, body 2 the sphere, the normal points from the box to the sphere).\n\n"
+		"*Creation*: a contact is created when the sphere's gap to the box, g = d − r with d the signed distance from the sphere's centre to the box (to the closest point of its surface when outside, minus the depth below the nearest face when inside), is below the alert distance (see :yref:`ContactDynamicsIntegrator.alertRatio`; the box's speed counted there is that of its centre: its spin is not). :yref:`interactionDetectionFactor<Ig2_Box_Sphere_ScGeom.interactionDetectionFactor>` is ignored.\n\n"
+		"*Geometry* (YADE's :yref:`Ig2_Box_Sphere_ScGeom`, exact): with the centre outside the box, the closest point p of the box to the centre c; the normal is (c − p)/|c − p|, i.e. the face normal over a face, perpendicular to the edge near an edge, along c − corner near a corner; the penetration depth is r − |c − p|, the contact point the middle of p and c − r·n.\n\n"
+		"*Centre inside the box* (the half-step predictor of :yref:`ContactDynamicsIntegrator` can put it there in an impact): YADE takes the face nearest the centre, which for a centre past the mid-plane of a thin box is the opposite face, a mirrored contact that would push the sphere through. For an existing contact this functor keeps instead the face the previous normal points out of (its largest component in the box's axes), i.e. the face the sphere came through, with the signed depth: normal = that face's outward normal, penetration depth = r + depth of the centre below that face. A contact created with the centre already inside (a sphere generated inside a box) gets YADE's nearest face. (At the mid-step the integrator, seeing an overlap deeper than r, keeps the start-of-step frame and predicts the gap linearly anyway.)\n\n"
+		":yref:`hertzian<Ig2_Box_Sphere_ScGeom.hertzian>` is honoured (it changes only refR1, which Contact Dynamics does not use: it takes the smaller radius)."
+	);
+	// clang-format on
+};
+REGISTER_SERIALIZABLE(Ig2_Box_Sphere_CDScGeom);
 
 } // namespace yade

@@ -63,7 +63,7 @@ int ContactDynamicsIntegrator::scheduleCode(const std::string& name)
 void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 {
 	auto bad = [](const std::string& what) { throw std::invalid_argument("ContactDynamicsIntegrator." + what); };
-	if (!(tolerance > 0)) bad("tolerance=" + std::to_string(tolerance) + ": must be a positive number.");
+	if (!(tolerance > 0 && tolerance < 1)) bad("tolerance=" + std::to_string(tolerance) + ": must lie in (0, 1) (a relative residual).");
 	if (maxIter < 1) bad("maxIter=" + std::to_string(maxIter) + ": must be at least 1.");
 	if (checkEvery < 1) bad("checkEvery=" + std::to_string(checkEvery) + ": must be at least 1.");
 	if (!(alertRatio >= 0)) bad("alertRatio=" + std::to_string(alertRatio) + ": must be ≥ 0.");

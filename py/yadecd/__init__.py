@@ -35,11 +35,17 @@ def engines(gravity=(0, 0, -9.81), en=0.0, et=0.0, extra=(), **integrator_option
     """The canonical engine list of a Contact Dynamics scene, in YADE's usual order::
 
         ForceResetter
-        InsertionSortCollider([Bo1_Sphere_CDAabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb])   (defaults)
-        InteractionLoop([Ig2_Sphere_Sphere_CDScGeom, Ig2_Wall_Sphere_CDScGeom, Ig2_Facet_Sphere_CDScGeom],
+        InsertionSortCollider([Bo1_Sphere_CDAabb, Bo1_Wall_Aabb, Bo1_Facet_Aabb, Bo1_Box_Aabb])   (defaults)
+        InteractionLoop([Ig2_Sphere_Sphere_CDScGeom, Ig2_Wall_Sphere_CDScGeom, Ig2_Facet_Sphere_CDScGeom,
+                         Ig2_Box_Sphere_CDScGeom],
                         [Ip2_FrictMat_FrictMat_CDPhys(en, et)], [Law2_ScGeom_CDPhys_Coulomb])
         *extra                      (e.g. PyRunner engines)
         ContactDynamicsIntegrator(gravity, **integrator_options)
+
+    Shape pairs: sphere–sphere, and a sphere against a wall, a facet or a box (``utils.box``, in
+    any orientation). Walls, facets and boxes are obstacles: fixed, or moved kinematically by
+    setting their ``state.vel``. Each ``Ig2_*_CDScGeom`` functor creates a contact once the gap
+    is below the alert distance (:yref:`ContactDynamicsIntegrator.alertRatio`).
 
     :param gravity: gravitational acceleration [m/s²].
     :param en, et: normal and tangential restitution coefficients given to new contacts.
@@ -48,15 +54,16 @@ def engines(gravity=(0, 0, -9.81), en=0.0, et=0.0, extra=(), **integrator_option
         ``maxIter``, ``alertRatio``...).
     """
     from yade.wrapper import (ForceResetter, InsertionSortCollider, InteractionLoop, Bo1_Wall_Aabb,
-                              Bo1_Facet_Aabb, Bo1_Sphere_CDAabb, Ig2_Sphere_Sphere_CDScGeom,
-                              Ig2_Wall_Sphere_CDScGeom, Ig2_Facet_Sphere_CDScGeom,
+                              Bo1_Facet_Aabb, Bo1_Box_Aabb, Bo1_Sphere_CDAabb, Ig2_Sphere_Sphere_CDScGeom,
+                              Ig2_Wall_Sphere_CDScGeom, Ig2_Facet_Sphere_CDScGeom, Ig2_Box_Sphere_CDScGeom,
                               Ip2_FrictMat_FrictMat_CDPhys, Law2_ScGeom_CDPhys_Coulomb,
                               ContactDynamicsIntegrator)
     return [
         ForceResetter(),
-        InsertionSortCollider([Bo1_Sphere_CDAabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()]),
+        InsertionSortCollider([Bo1_Sphere_CDAabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb(), Bo1_Box_Aabb()]),
         InteractionLoop(
-            [Ig2_Sphere_Sphere_CDScGeom(), Ig2_Wall_Sphere_CDScGeom(), Ig2_Facet_Sphere_CDScGeom()],
+            [Ig2_Sphere_Sphere_CDScGeom(), Ig2_Wall_Sphere_CDScGeom(), Ig2_Facet_Sphere_CDScGeom(),
+             Ig2_Box_Sphere_CDScGeom()],
             [Ip2_FrictMat_FrictMat_CDPhys(en=en, et=et)],
             [Law2_ScGeom_CDPhys_Coulomb()]),
         *extra,

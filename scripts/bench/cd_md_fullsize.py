@@ -9,7 +9,7 @@ by the protocol's rule (200 per second, the same grains in every case), runs ``-
 simulated seconds untimed (a snapshot holds no impulses: CD's first steps are cold solves, and MD's
 springs must first take up the load) and then ``--time`` simulated seconds, timed: CD at the
 paper's h = 2e-4 s (and any further ``--cd-dt``, e.g. the faster protocol's 1e-3) and tolerance 1e-3 (``--cd-tolerance``), MD (linear spring and
-Coulomb slider, ``yadecd.md``, global damping 0.2, O.dt = 0.5 · PWaveTimeStep) at each Young's
+Coulomb slider, ``yadecd.compare.md``, global damping 0.2, O.dt = 0.5 · PWaveTimeStep) at each Young's
 modulus of ``--young``. ``auto`` is the modulus at which MD's mean grain–grain overlap equals CD's:
 a linear contact's overlap under a given load is inversely proportional to E, so it is read off
 the MD case before it (E_auto = E_prev · overlap_prev / overlap_CD) and then *run*, not

@@ -7,7 +7,7 @@ still move? (docs/pile.md, force accuracy of the full pile.)
 Loads the run's newest checkpoint (``PileRun.load``: YADE's archive, or a carried run's
 state.npz) once per sweep count, solves the next step with exactly that many sweeps (tolerance
 unreachable) and the solver's momentum on or off, and compares the contact forces of the last
-two solves with ``pile_analysis.force_change``: total relative change, the share of it carried
+two solves with ``yadecd.analysis.force_change``: total relative change, the share of it carried
 by the contacts that change most (small shares: a drift spread over the pile; large ones: a few
 culprits), and where those contacts are. Prints and writes the residual of every solve and the
 comparison.

@@ -4,7 +4,7 @@
         [--work /tmp/rest_check] [--out docs/data/rest_60grain_correction_momentum.json]
 
 For each seed, one pile by the paper's protocol (``yadecd.pile``) with ``correction_momentum``
-False, then True; at the end of the relaxation its rest speed (``pile_analysis.rest_speed``: the
+False, then True; at the end of the relaxation its rest speed (``yadecd.analysis.rest_speed``: the
 largest grain speed, grains standing alone on the floor wall counted by their vertical speed only,
 since rolling on a flat wall is a neutral equilibrium), the largest speed of all, and how many
 grains stand alone on the wall. Prints one JSON line per pile and writes the list to --out.

@@ -1,7 +1,7 @@
 """Save steps of a pile as problem files for the core benchmark (build/cd_core_bench).
 
     scripts/yade -j1 -n -x scripts/bench/save_step.py SOURCE OUT.cdp [--warmup 20] [--feed]
-                  [--count 1] [--spacing 1] [--tolerance 1e-3] [--schedule 5] [--slabs 2]
+                  [--count 1] [--spacing 1] [--tolerance 1e-3] [--schedule slabs] [--slabs 2]
 
 SOURCE is either
   - a snapshot (RUN/snap_XXXX.npz): the pile is rebuilt from it (yadecd.pile.scene_from_snapshot)

@@ -8,7 +8,7 @@ then one step with the engine at ``--tol``. That step's frictional contact probl
 in FCLIB's HDF5 layout (``--fclib``), read back, and solved by Siconos' NSGS from zero and from
 the engine's previous-step impulses (the same warm start the engine had), continued in chunks
 until it reaches the engine's residual. Reported for every solution, under one common definition (Siconos' relative natural-map error, ρ = 1, see
-``yadecd.fclib.residual``): the residual, sweeps and wall time to tolerance, and the agreement
+``yadecd.export.fclib.residual``): the residual, sweeps and wall time to tolerance, and the agreement
 of impulses and velocities. Appends one CSV row per solver.
 """
 import argparse

@@ -1,4 +1,4 @@
-"""Sand-pile analysis (py/yadecd/pile_analysis.py) on constructed snapshots with known answers.
+"""Sand-pile analysis (py/yadecd/analysis/) on constructed snapshots with known answers.
 
 Pure numpy: yadecd imports without YADE, so these tests run inside YADE
 (``bash tests/run.sh``) as well as with ``/usr/bin/python3 -m unittest`` from tests/. Every test

@@ -302,7 +302,7 @@ class TestEnsembleDriver(unittest.TestCase):
 
 
 class TestEnsembleStatistics(unittest.TestCase):
-    """pile_ensemble_analysis.aggregate on constructed per-run records with known values."""
+    """yadecd.analysis.ensemble.aggregate on constructed per-run records with known values."""
 
     @staticmethod
     def record(n, seed, epoch, slope, p_disc, p_ring):

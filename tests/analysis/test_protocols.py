@@ -20,7 +20,7 @@ class TestWelch(unittest.TestCase):
     def test_hand_computed(self):
         # a: mean 2.5, variance 5/3; b: mean 6, variance 10. se² = 5/12 + 2; Welch df = 5.52 -> 5,
         # t(0.975, 5) = 2.5706: interval -3.5 ± 2.5706·1.554563 (the quantile table holds 2.571:
-        # pile_analysis.t_quantile_975 is exact to 3 decimals, 6e-4 here)
+        # yadecd.analysis.t_quantile_975 is exact to 3 decimals, 6e-4 here)
         w = pr.welch([1, 2, 3, 4], [2, 4, 6, 8, 10])
         self.assertAlmostEqual(w['delta'], -3.5, places=12)
         self.assertAlmostEqual(w['se'], math.sqrt(5 / 12 + 2), places=12)

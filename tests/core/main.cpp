@@ -1,6 +1,6 @@
 // Core tier: the solver's YADE-independent parts (pkg/cd/core) checked without running YADE,
 // against exact solutions and against the engine's own results. Built by the top-level CMake as
-// `cd_core_tests`; run by tests/test_core.py (so by the README's test command):
+// `cd_core_tests`; run by tests/engine/test_core.py (so by the README's test command):
 //
 //   build/cd_core_tests [DATA_DIR]     (default: the repository's tests/data/core)
 //

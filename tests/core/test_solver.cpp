@@ -165,7 +165,7 @@ void optionGrid(const std::string& name, const cd::SavedProblem& pb, const Expec
 				cd::Params p   = pb.params;
 				p.schedule     = schedule;
 				p.momentum     = momentum;
-				p.sphereKernel = sphere;
+				p.sphereFastPath = sphere;
 				p.relaxation   = 1;
 				p.tolerance    = e.gridTolerance;
 				p.maxIter      = 100000;

@@ -1,4 +1,4 @@
-"""The engine's results are unchanged bit for bit: state hashes of yadecd.statehash's cases equal
+"""The engine's results are unchanged bit for bit: state hashes of yadecd.testing.statehash's cases equal
 those recorded in tests/data/state_hashes.json before the solver-core refactor, for one thread (in
 this process) and two threads (a YADE started with -j2). A change that alters results on purpose
 records new hashes with scripts/state_hashes.py and says why in its commit."""

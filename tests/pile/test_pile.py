@@ -16,7 +16,7 @@ import yadecd.pile as pile
 
 
 def load_figures():
-    """The pile_figures module (as scripts/pile_figures.py uses it)."""
+    """yadecd.analysis.report (as scripts/pile_figures.py uses it)."""
     from yadecd.analysis import report as pile_figures
     return pile_figures
 
@@ -345,8 +345,7 @@ class TestEnsembleDriver(unittest.TestCase):
 
     def test_one_failure_does_not_stop_the_others(self):
         import subprocess
-        here = os.path.dirname(os.path.abspath(__file__))
-        script = os.path.join(here, '..', 'scripts', 'pile_ensemble.py')
+        script = os.path.join(SCRIPTS, 'pile_ensemble.py')
         with tempfile.TemporaryDirectory() as d:
             root = os.path.join(d, 'ens')
             bad = os.path.join(root, 'n6_s2')

@@ -1,6 +1,6 @@
-"""Carrying a pile run between machines (yadecd.carry) on constructed run directories: which
+"""Carrying a pile run between machines (yadecd.runs.carry) on constructed run directories: which
 snapshots go, the checkpoint reduced to state.npz, a damaged newest unit, a destination replaced
-whole, and refusals. The resume of a carried real run is tests/test_runstate.py
+whole, and refusals. The resume of a carried real run is tests/runs/test_runstate.py
 TestResume.test_carried_resume."""
 import json
 import os

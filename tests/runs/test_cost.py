@@ -1,4 +1,4 @@
-"""What a run's wall time went into (yadecd.runcost) on constructed progress records with known
+"""What a run's wall time went into (yadecd.runs.cost) on constructed progress records with known
 costs: two segments on hosts of different speed, the interval that straddles a resume left out,
 sparse windows dropped, and the segment log written and read back."""
 import os

@@ -211,7 +211,7 @@ class TestResume(unittest.TestCase):
             pile.PileRun.load(self.tmp)
 
     def test_carried_resume(self):
-        """A run carried to another directory (yadecd.carry: state.npz only, as committed between
+        """A run carried to another directory (yadecd.runs.carry: state.npz only, as committed between
         machines) resumes there through the state.npz path and ends where the uninterrupted run
         ends, to the rebuilt path's gap; the source is untouched."""
         from yadecd.runs.carry import carry
@@ -315,7 +315,8 @@ class TestChecksBeforeWork(unittest.TestCase):
             with self.subTest(key=key, value=value):
                 run_dir = os.path.join(self.tmp, 'bad_%s' % key)
                 with self.assertRaisesRegex(ValueError, key):
-                    pile.run(run_dir, **{key: value}, **QUIET)
+                    # a tiny pile: a value the check let through must not start a 14 000-grain run
+                    pile.run(run_dir, **dict(TINY, stop_time=0.01, **{key: value}), **QUIET)
                 self.assertFalse(os.path.exists(run_dir), 'a run directory was made before the check')
         with self.assertRaisesRegex(ValueError, 'unknown pile parameters: grains'):
             pile.run(os.path.join(self.tmp, 'x'), grains=3, **QUIET)

@@ -92,7 +92,7 @@ namespace cd {
 		Matrix3r WlawInv; // its inverse
 	};
 
-	/*! The contacts of a step, one set in structure-of-arrays form: the arrays a sweep reads
+	/*! The contacts of a step, one set in arrays of records: the arrays a sweep reads
 	 *  (the state: impulse, friction, status, kernel; the sphere kernel's rows) apart from the cold
 	 *  ContactInfo. A contact takes the sphere kernel (kernel < 0: its SphereRow) or the general
 	 *  one (kernel ≥ 0: its row in the side table `general`). There is one copy of every impulse

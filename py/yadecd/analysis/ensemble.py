@@ -1,7 +1,7 @@
 """Statistics over an ensemble of sand piles (``scripts/pile_ensemble.py analyse``).
 
 Every finished run of an ensemble directory (:mod:`ensemble`) is analysed at two epochs: the
-end of the feed and the end of the relaxation. Per run and epoch, :func:`pile_figures.measure`
+end of the feed and the end of the relaxation. Per run and epoch, :func:`yadecd.analysis.report.measure`
 gives every number; they are cached in ``<out>/runs/<run>_<epoch>.json`` (recomputed when the
 snapshot is newer). Per grain count and epoch, every scalar becomes a mean, a spread over seeds and
 a 95 % Student-t interval; the change on relaxation is measured seed by seed (paired); the

@@ -178,9 +178,9 @@ def fig_reciprocal(recip, path):
 def fig_cylindrical(snap, cyl, fossils, path, half_thickness=0.01, law=None):
     """Figure 4: directions of the force density on cylindrical cuts (segments of fixed length,
     width growing with |T|), drawn at (±r, z) over the outlines of the fossil-layer grains of the
-    slab |y| < half_thickness [m]. ``cyl`` is a :func:`pile_analysis.cylindrical_cut_directions`
+    slab |y| < half_thickness [m]. ``cyl`` is a :func:`yadecd.analysis.cylindrical_cut_directions`
     result, optionally with a bool grid ``inside`` selecting the points drawn; ``fossils`` is a
-    list of (t1, t2) [s]. With ``law`` (:func:`pile_analysis.fossil_law`), a second panel shows
+    list of (t1, t2) [s]. With ``law`` (:func:`yadecd.analysis.fossil_law`), a second panel shows
     the angle between each force density and the local fossil layer against the null model of a
     random layer. Writes PNG ``path``."""
     fig = new_figure(13 if law is not None else 9, 4.5)

@@ -89,9 +89,9 @@ def measure(snap, ring_width=None, n_sectors=8, band_length=None, band_height=No
     multiples of the mean diameter d: rings 2 d, reciprocal bands 3 d long with d/2 of clearance
     inside the pile, cylindrical bands 3 d high, fossil layers fitted within 2 d).
 
-    :returns: dict ``prof`` (:func:`pile_analysis.profile_and_slope`), ``gp`` (ground pressure),
-        ``dip`` (:func:`pile_analysis.central_dip`), ``recip`` (reciprocal cuts), ``cyl``
-        (cylindrical cuts with the grid ``inside``), ``law`` (:func:`pile_analysis.fossil_law`),
+    :returns: dict ``prof`` (:func:`yadecd.analysis.profile_and_slope`), ``gp`` (ground pressure),
+        ``dip`` (:func:`yadecd.analysis.central_dip`), ``recip`` (reciprocal cuts), ``cyl``
+        (cylindrical cuts with the grid ``inside``), ``law`` (:func:`yadecd.analysis.fossil_law`),
         ``hist`` (contact orientations), ``settings``."""
     d = pa.mean_diameter(snap)
     ring_width = ring_width or 2 * d

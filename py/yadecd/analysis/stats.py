@@ -50,17 +50,46 @@ def _theil_sen(x, y):
     return float(np.median(y - b * x)), b
 
 
+def _bisquare_weights(e, c, s_floor):
+    """Tukey's bisquare weights (1 - u²)² for |u| < 1, else 0, of the residuals ``e``, with
+    u = e/(c·s) and s = max(1.4826·MAD(e), ``s_floor``)."""
+    s = max(1.4826 * float(np.median(np.abs(e - np.median(e)))), s_floor)
+    u = e / (c * s)
+    return np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
+
+
 def robust_line(x, y, bin_width, c=4.685, max_iter=50, start=None):
     """Line y = a + b·x resistant to outliers (stray grains, a foot, a cap left in the window).
 
     Start: the Theil–Sen line through the medians of y in bins of x of width ``bin_width`` (or
     ``start`` = (a, b)), refined by 10 Huber iterations (weights min(1, 1.345 s/|residual|),
     never zero). Then Tukey's bisquare, iteratively reweighted: weights
-    (1 - u²)² for |u| < 1, u = residual/(c·s), s = 1.4826·MAD of the residuals; points farther
-    than c·s get no weight. Returns (a, b, weights); (nan, nan, zeros) with fewer than two
-    distinct bins."""
+    (1 - u²)² for |u| < 1, u = residual/(c·s), s = 1.4826·MAD of the residuals (floored at
+    1e-9·ptp(y)); points farther than c·s get no weight. Returns (a, b, weights), (a, b) being
+    the weighted least-squares line of those weights; (nan, nan, zeros) with fewer than two
+    distinct bins, or fewer than two points (or, given ``start``, when no line is defined: all x
+    equal).
+
+    Degenerate case: exact data. s is the MAD about the median residual, the weights use the
+    residual about the line. When more than half of the points lie exactly on a line (grains
+    placed on a constructed cone, with outliers such as exposed buried grains), s collapses to
+    round-off while the Huber line can still miss those points by more than c·s (a Huber
+    weight moves the line by at most 1.345 s per point, so the pull shrinks with s and a start
+    offset is not closed): the bisquare would give every point zero weight. So whenever a
+    bisquare step would keep fewer than half of the points, the line is first moved by the
+    median residual (a += median(e)); then at least half of the residuals lie within one MAD
+    of 0 and keep a weight, and the iteration goes on: on points exactly on y = a0 + b0·x plus
+    a gross outlier, or plus a parallel layer one grain lower, it ends on (a0, b0) to round-off
+    (outliers so many and so near that the MAD spans them still give a compromise line, the
+    bisquare's ordinary breakdown, not this case). With any scatter this cannot
+    happen near the fit (it needs |median(e)| > (c·1.4826 - 1)·MAD ≈ 5.9 MAD), so ordinary
+    data give the same numbers as before. Should the bisquare still define no line (every kept
+    point at one x), the Huber line and its weights (never zero) are returned: the weights
+    returned with a finite line are never all zero."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     w = np.zeros(len(x))
+    if len(x) < 2:
+        return float('nan'), float('nan'), w
     if start is None:
         k = np.floor(x / bin_width).astype(np.int64)
         cells = np.unique(k)
@@ -73,25 +102,30 @@ def robust_line(x, y, bin_width, c=4.685, max_iter=50, start=None):
         a, b = start
     if not np.isfinite(b):
         return float('nan'), float('nan'), w
-    w = np.ones(len(x))
     s_floor = 1e-9 * max(float(np.ptp(y)), 1e-300)   # exact data: the scale never reaches 0
-    for it in range(max_iter + 10):
+    for _ in range(10):      # Huber first: never a zero weight, so a rough start cannot lose every point
         e = y - a - b * x
         s = max(1.4826 * float(np.median(np.abs(e - np.median(e)))), s_floor)
-        if it < 10:      # Huber first: never a zero weight, so a rough start cannot lose every point
-            w = np.minimum(1.0, 1.345 * s / np.maximum(np.abs(e), 1e-300))
-            a, b = _weighted_line(x, y, w)
-            continue
-        u = e / (c * s)
-        w = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
+        w = np.minimum(1.0, 1.345 * s / np.maximum(np.abs(e), 1e-300))
+        a, b = _weighted_line(x, y, w)
+    if not (np.isfinite(a) and np.isfinite(b)):
+        return float('nan'), float('nan'), np.zeros(len(x))
+    fit = (float(a), float(b), w)       # the Huber line: what is returned if the bisquare defines none
+    for _ in range(max_iter):
+        e = y - a - b * x
+        w = _bisquare_weights(e, c, s_floor)
+        if 2 * np.count_nonzero(w) < len(x):     # the line misses the bulk (exact data): move it onto it
+            a = a + float(np.median(e))
+            w = _bisquare_weights(y - a - b * x, c, s_floor)
         a2, b2 = _weighted_line(x, y, w)
         if not np.isfinite(b2):
             break
         done = abs(b2 - b) <= 1e-12 * max(1.0, abs(b)) and abs(a2 - a) <= 1e-12 * max(1.0, abs(a))
         a, b = a2, b2
+        fit = (float(a), float(b), w)
         if done:
             break
-    return float(a), float(b), w
+    return fit
 
 
 _T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,

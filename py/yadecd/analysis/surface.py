@@ -162,7 +162,17 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
     A pile whose flank would span less than ``FLANK_MIN_SPAN_D`` = 2 d of height (the surface
     where the window starts less than 4 d above the floor: piles below about 2 cm with the
     paper's grains), or holds too few points, has no straight flank: the slope is nan and
-    ``slope_note`` says why.
+    ``slope_note`` says why (it starts with 'no straight flank' or reads 'no descending flank in
+    the window'). The same holds wherever no window can start at all (no surface point 3 d from
+    the axis and 1 d under the apex: a flat layer, a handful of grains).
+
+    Degenerate data never raise. On exact surfaces (grains placed with their tops on a cone,
+    plus exposed grains under it) the residuals' MAD collapses to round-off and the bisquare
+    alone would give every point zero weight (an empty fit range): :func:`robust_line` then
+    moves the line onto the bulk of the points (their median residual) and goes on: on the
+    exact cones of tests/analysis/test_flank_fit.py, with or without a foot, the slope comes
+    back to round-off. Were a fit still to keep no point, the result would be the no-slope one
+    with the note 'no straight flank: the robust fit gave no weight ...'.
 
     :returns: dict ``slope_deg``, ``slope_err_deg``, ``slope_sector_deg`` (per-sector fits),
         ``slope_note`` ('' when measured), ``fit_line`` (a, b) of h = a + b·r, ``fit_r_range``
@@ -189,6 +199,10 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
            'weight': np.zeros(len(r)), 'H': H, 'd': d, 'base_radius': nan, 'H_cone': nan,
            'window_r': (r_lo, r_hi)}
     out.update(_chord(r, h, sector, n_sectors, H, d))
+    if not np.isfinite(h_start):      # a flat layer, a handful of grains: nowhere for a flank to start
+        out['slope_note'] = ('no straight flank: no surface point is %.0f d or more from the axis and %.0f d or more '
+                             'under the apex (%.1f d high)' % (FLANK_CAP_RADIUS_D, FLANK_CAP_DROP_D, H / d))
+        return out
     if not (h_start - FLANK_MIN_THICKNESS_D * d >= FLANK_MIN_SPAN_D * d * (1 - 1e-9)):   # round-off slack
         out['slope_note'] = ('no straight flank: the surface is %.1f grain diameters high where a flank could start '
                              '(3 d from the axis, 1 d under the apex at %.1f d), a flank needs %.1f'
@@ -202,9 +216,12 @@ def flank_slope(snap, mask=None, z_floor=None, n_sectors=8, n_boot=200, seed=0):
     if not (np.isfinite(b) and b < 0):
         out['slope_note'] = 'no descending flank in the window'
         return out
+    used = w > 0
+    if not used.any():    # robust_line never returns this with a finite line; kept so that no data can crash here
+        out['slope_note'] = 'no straight flank: the robust fit gave no weight to any of the %d window points' % len(x)
+        return out
     weight = np.zeros(len(r))
     weight[window] = w
-    used = w > 0
     per_sector = []
     for s in range(n_sectors):
         m = sec == s

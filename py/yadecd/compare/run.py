@@ -10,7 +10,7 @@ the CD engines); :func:`to_md` then swaps in YADE's own soft-contact engines on 
 and :func:`run` builds, runs and measures one case with either method, returning one flat dict
 (a CSV row): errors against the exact solution, interpenetration, energy drift, cost, CD sweeps,
 and a named status (:data:`STATUSES`). ``scripts/compare_cd_md.py`` sweeps it; the tests in
-``tests/test_compare.py`` check its failure detection.
+``tests/compare/test_compare.py`` check its failure detection.
 
 Cost is the wall time spent in ``O.step()`` only (sampling and measuring excluded), divided by
 the simulated time. ``O.run(n, True)`` is not used for timing: its wait loop polls every 40 ms.

@@ -156,12 +156,15 @@ def check_params(p):
         v = p[key]
         if isinstance(default, bool):
             ok = isinstance(v, (bool, np.bool_))
+        elif isinstance(default, int) and key in SOLVER_OPTIONS:    # an integer attribute of the engine
+            ok = isinstance(v, (int, np.integer)) and not isinstance(v, bool)
         elif isinstance(default, (int, float)):
             ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
         else:
             ok = isinstance(v, str)
         if not ok:
-            raise ValueError('pile parameter %s must be a %s, not %r' % (key, type(default).__name__, v))
+            raise ValueError('pile parameter %s must be %s, not %r' % (key, {bool: 'a bool', int: 'an integer', float: 'a number',
+                                                                                 str: 'a string'}[type(default)], v))
     rules = [
         ('n_grains', p['n_grains'] >= 1 and int(p['n_grains']) == p['n_grains'], 'a positive integer'),
         ('d_min', p['d_min'] > 0, 'positive [m]'),

@@ -77,8 +77,8 @@ def _run_json(run_dir, missing):
 class PileRun:
     """One pile run in its directory: started, resumed from a checkpoint, advanced, checkpointed.
 
-    A checkpoint is one verified unit of :class:`yadecd.checkpoint.CheckpointStore` holding
-    ``state.npz`` (the layout-independent state, :mod:`yadecd.runstate`) and ``scene.yade.gz``
+    A checkpoint is one verified unit of :class:`yadecd.runs.checkpoint.CheckpointStore` holding
+    ``state.npz`` (the layout-independent state, :mod:`yadecd.runs.runstate`) and ``scene.yade.gz``
     (YADE's archive, the fast path: it resumes bit for bit when the plugin is the same)."""
 
     def __init__(self, run_dir, p, log):
@@ -231,7 +231,7 @@ class PileRun:
     def rebuild(self, data):
         """The scene again from a run state, by the code that builds a new run: floor and engines
         (:func:`build_scene`), grains (:func:`add_grain`), then positions, velocities and contacts
-        with their warm-start impulses (:mod:`yadecd.runstate`)."""
+        with their warm-start impulses (:mod:`yadecd.runs.runstate`)."""
         p = self.p
         ids, kind = data['body_id'], data['body_kind']
         n_paving = int(p['n_paving'])
@@ -414,7 +414,7 @@ def clear_run(run_dir, keep=()):
 
 def branch(src, dest, options, log=print):
     """Start a branch of the pile run in ``src`` in ``dest``: the run's portable part copied
-    (:func:`yadecd.carry.carry`, from its newest valid checkpoint), the solver options among
+    (:func:`yadecd.runs.carry.carry`, from its newest valid checkpoint), the solver options among
     ``options`` (BRANCH_MAY_CHANGE) applied from that point on; any other option given must equal
     the source's. ``run.json`` of the branch keeps the source's parameters and history
     (progress, segments) and lists, under ``branches``, where it left its source: the source,

@@ -5,12 +5,12 @@ machine is reset between sessions. :func:`carry` copies what a resume needs and 
 analyses read, and nothing machine-specific:
 
 * ``run.json`` (the parameters), ``progress.csv`` (with the run's wall time so far) and
-  ``segments.csv`` (where and when each segment ran, :mod:`yadecd.runcost`);
+  ``segments.csv`` (where and when each segment ran, :mod:`yadecd.runs.cost`);
 * the snapshots ``snap_<t>.npz`` at multiples of ``snap_every`` seconds (all when ``None``),
   always with the newest one and the one at the end of the feed (``n_grains / rate`` in run.json:
   the state the deposit analyses read);
 * the newest *valid* checkpoint unit, reduced to its ``state.npz`` (the layout-independent
-  state, :mod:`yadecd.runstate`); YADE's archive ``scene.yade.gz`` is left out: it is the larger
+  state, :mod:`yadecd.runs.runstate`); YADE's archive ``scene.yade.gz`` is left out: it is the larger
   file and only loads into the very plugin build that wrote it.
 
 The copy is a run directory: ``pile.py --out DEST --resume`` continues it through the state.npz

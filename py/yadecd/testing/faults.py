@@ -1,7 +1,7 @@
 """Fault injection for pile runs: kill -9 at random moments (some during checkpoint writes),
 damaged checkpoints, a full disk; every run is resumed and its end compared bit for bit with an
 uninterrupted run. Used by ``scripts/fault_injection.py`` (the full suite) and
-``tests/test_runstate.py`` (a fast version).
+``tests/runs/test_runstate.py`` (a fast version).
 
 Pure Python and numpy (no YADE): pile runs are ``scripts/pile.py`` subprocesses under
 ``scripts/yade``, exactly as a user starts them.

@@ -5,7 +5,7 @@ runs a fixed number of steps and hashes the exact state: positions, orientations
 angular velocities of every body, and every contact's impulse (contacts in (id1, id2) order, since
 the container's order carries no physics). ``tests/data/state_hashes.json`` holds the hashes the
 engine gave before a refactor, for one and two threads (``scripts/state_hashes.py`` writes it);
-``tests/test_state_hashes.py`` requires the same hashes after it.
+``tests/engine/test_state_hashes.py`` requires the same hashes after it.
 
 The cases cover every sweep schedule (with parallel stages), momentum on and off, the sphere fast path and the general
 3×3 path, over-relaxation, a sparser residual check, restitution, a hyperstatic block, a mass

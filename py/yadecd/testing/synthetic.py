@@ -1,7 +1,7 @@
 """Constructed piles and floor loads with known answers, to test the pile estimators.
 
-Pure numpy, snapshots in the format of :mod:`pile_analysis` (SI units). Used by the tests
-(``tests/test_pile_estimators.py``) and by ``scripts/estimator_check.py``, which prints how the
+Pure numpy, snapshots in the format of :mod:`yadecd.analysis.snapshots` (SI units). Used by the tests
+(``tests/analysis/test_pile_estimators.py``) and by ``scripts/estimator_check.py``, which prints how the
 estimators read these cases (docs/pile.md).
 
 :func:`constructed_pile` builds what a deposited pile looks like to the free-surface estimator:
