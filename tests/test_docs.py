@@ -58,6 +58,7 @@ YADE_TYPES = {
     'ScGeom': {'penetrationDepth', 'normal', 'contactPoint'},
     'NewtonIntegrator': YADE_BASE_ATTRIBUTES['NewtonIntegrator'],
     'FrictPhys': YADE_BASE_ATTRIBUTES['FrictPhys'],
+    'Clump': {'moveMembers', 'addForceTorqueFromMembers', 'members'},   # YADE's core/Clump.hpp
 }
 
 #: module names of the flat layout, retired by the package's reorganisation (their new places:

@@ -245,22 +245,34 @@ void ContactDynamicsIntegrator::checkScene()
 	postLoad(*this);
 	scene->forces.sync();
 
-	core.bodies.assign(scene->bodies->size(), cd::Body());
-	core.records.assign(scene->bodies->size(), cd::BodyRecord());
-	start.assign(scene->bodies->size(), StartOfStep());
+	const size_t nb = scene->bodies->size();
+	core.bodies.assign(nb, cd::Body());
+	core.records.assign(nb, cd::BodyRecord());
+	start.assign(nb, StartOfStep());
+	mover.resize(nb);
+	clumps.clear();
 	for (const auto& b : *scene->bodies) {
 		if (!b) continue;
 		const State& s = *b->state;
 		const string who = "body #" + std::to_string(b->id);
-		if (b->isClump() || b->isClumpMember()) throw std::invalid_argument(who + " is (in) a clump: clumps are not supported by ContactDynamicsIntegrator.");
 		if (!finite(s.pos) || !finite(s.vel) || !finite(s.angVel))
 			throw std::invalid_argument(who + " has a NaN or infinite position or velocity.");
 		cd::Body&       sb = core.bodies[b->id];
 		cd::BodyRecord& br = core.records[b->id];
 		start[b->id]       = StartOfStep { s.pos, s.ori, true };
-		br.dynamic         = b->isDynamic();
+		mover[b->id]       = b->id;
 		br.vi = sb.v = s.vel;
 		br.wi = sb.w = s.angVel;
+		if (b->isClumpMember()) { // moved with its clump: never an unknown of the solve
+			checkClumpMember(*b, who);
+			mover[b->id] = b->clumpId;
+			continue;
+		}
+		if (b->isClump()) {
+			if (static_cast<const Clump*>(b->shape.get())->members.empty()) throw std::invalid_argument(who + " is a clump without members.");
+			clumps.push_back(b->id);
+		}
+		br.dynamic         = b->isDynamic();
 		br.pv = br.pw = Vector3r::Zero();
 		sb.invM.setZero();
 		sb.invI.setZero();
@@ -314,10 +326,10 @@ void ContactDynamicsIntegrator::gatherContacts()
 			throw std::invalid_argument(
 			        "no geometry functor for bodies " + pairName(I->getId1(), I->getId2()) + " (shapes " + (b1 ? b1->shape->getClassName() : "?") + ", "
 			        + (b2 ? b2->shape->getClassName() : "?")
-			        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere and Facet–Sphere (see yadecd.engines()).");
+			        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere, Facet–Sphere and Box–Sphere (see yadecd.engines()).");
 		}
 		if (!I->isReal()) continue;
-		if (!core.records[I->getId1()].dynamic && !core.records[I->getId2()].dynamic) continue; // obstacles never exchange impulses
+		if (!core.records[mover[I->getId1()]].dynamic && !core.records[mover[I->getId2()]].dynamic) continue; // obstacles never exchange impulses
 		auto* phys = dynamic_cast<CDPhys*>(I->phys.get());
 		auto* geom = dynamic_cast<ScGeom*>(I->geom.get());
 		if (!phys || !geom)
@@ -332,8 +344,8 @@ void ContactDynamicsIntegrator::gatherContacts()
 		if (!(phys->en >= 0 && phys->en <= 1) || !(phys->et >= -1 && phys->et <= 1))
 			throw std::invalid_argument("contact " + pairName(I->getId1(), I->getId2()) + " has restitution en, et outside [0,1], [-1,1].");
 		cd::ContactInfo c;
-		c.b1     = I->getId1();
-		c.b2     = I->getId2();
+		c.b1     = mover[I->getId1()];
+		c.b2     = mover[I->getId2()];
 		c.origin = long(links.size());
 		c.gapI   = -geom->penetrationDepth;
 		c.refR   = math::min(geom->refR1, geom->refR2);
@@ -350,18 +362,42 @@ void ContactDynamicsIntegrator::gatherContacts()
 	}
 	set.sortByHeight();
 	nContacts = int(set.size());
+	memberLever.assign(links.size(), { Vector3r::Zero(), Vector3r::Zero() });
 }
 
-// Stage 2 (paper §II.3): q_m = q_i + h/2 u_i, for every body (kinematic ones included).
+// Stage 2 (paper §II.3): q_m = q_i + h/2 u_i, for every body (kinematic ones included); clump
+// members follow their clump.
 void ContactDynamicsIntegrator::predictPositions()
 {
 	const Real h = scene->dt;
 	for (const auto& b : *scene->bodies) {
-		if (!b) continue;
+		if (!b || b->isClumpMember()) continue;
 		State& s = *b->state;
 		s.pos += 0.5 * h * s.vel;
 		rotate(s.ori, s.angVel, 0.5 * h);
 	}
+	moveClumpMembers();
+}
+
+// Members of every clump to the clump's position, orientation and velocity (rigidly, as YADE's
+// Clump::moveMembers places them for NewtonIntegrator).
+void ContactDynamicsIntegrator::moveClumpMembers()
+{
+	for (int id : clumps)
+		Clump::moveMembers<NewtonIntegrator>(Body::byId(id, scene), scene, nullptr);
+}
+
+// A clump member must be a sphere (the contact functors are the spheres'); the clump carries
+// its mass and inertia, so the member's own are not read.
+void ContactDynamicsIntegrator::checkClumpMember(const Body& b, const string& who)
+{
+	const auto& clump = Body::byId(b.clumpId, scene);
+	if (!clump || !clump->isClump())
+		throw std::invalid_argument(who + " is a clump member whose clump #" + std::to_string(b.clumpId) + " does not exist.");
+	if (b.shape->getClassName() != "Sphere")
+		throw std::invalid_argument(
+		        who + " is a member of clump #" + std::to_string(b.clumpId) + " but a " + b.shape->getClassName()
+		        + ": Contact Dynamics handles clumps of spheres only.");
 }
 
 // Stage 3: contact frames and gaps at q_m, from the same Ig2 functor that made the contact.
@@ -372,14 +408,15 @@ void ContactDynamicsIntegrator::updateContactFrames()
 	for (long k = 0; k < nc; ++k) { // contacts are independent here: any thread count gives the same frames
 		cd::ContactInfo&               c  = core.contacts.info[k];
 		const shared_ptr<Interaction>& I  = links[c.origin];
-		const auto&                    b1 = Body::byId(c.b1, scene);
-		const auto&                    b2 = Body::byId(c.b2, scene);
+		const auto&                    b1 = Body::byId(I->getId1(), scene); // the touching bodies (clump members included)
+		const auto&                    b2 = Body::byId(I->getId2(), scene);
 		ScGeom*                        g  = static_cast<ScGeom*>(I->geom.get());
 		const Vector3r                 ni = g->normal, Ci = g->contactPoint; // at q_i
 		I->functorCache.geom->go(b1->shape, b2->shape, *b1->state, *b2->state, Vector3r::Zero(), /*force*/ false, I);
 		Vector3r n = g->normal;
-		c.c1       = g->contactPoint - b1->state->pos;
-		c.c2       = g->contactPoint - b2->state->pos;
+		// lever arms from the bodies the solver moves (a clump's centre of mass for its members)
+		c.c1       = g->contactPoint - Body::byId(c.b1, scene)->state->pos;
+		c.c2       = g->contactPoint - Body::byId(c.b2, scene)->state->pos;
 		c.gapM     = -g->penetrationDepth;
 		// A grain fast enough to move more than its radius in half a step can put its centre
 		// past an obstacle's centre or plane at q_m; the geometry there is then meaningless (a
@@ -397,6 +434,7 @@ void ContactDynamicsIntegrator::updateContactFrames()
 			g->penetrationDepth       = -c.gapM;
 		}
 		c.point           = g->contactPoint;
+		memberLever[c.origin] = { g->contactPoint - b1->state->pos, g->contactPoint - b2->state->pos };
 		const Vector3r t1 = orthogonalUnit(n);
 		c.frame.row(0)    = n;
 		c.frame.row(1)    = t1;
@@ -411,9 +449,10 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 	const Real h = scene->dt;
 	for (const auto& b : *scene->bodies) {
 		if (!b || !core.records[b->id].dynamic) continue;
-		cd::Body&      sb = core.bodies[b->id];
-		const Vector3r F  = scene->forces.getForce(b->id);
-		const Vector3r T  = scene->forces.getTorque(b->id);
+		cd::Body& sb = core.bodies[b->id];
+		Vector3r  F  = scene->forces.getForce(b->id);
+		Vector3r  T  = scene->forces.getTorque(b->id);
+		if (b->isClump()) static_cast<Clump*>(b->shape.get())->addForceTorqueFromMembers(b->state.get(), scene, F, T);
 		for (int k = 0; k < 3; ++k)
 			if (sb.invM[k] > 0) sb.v[k] += h * (F[k] * sb.invM[k] + gravity[k]);
 		sb.w += h * sb.invI * T;
@@ -483,9 +522,11 @@ void ContactDynamicsIntegrator::updatePositions()
 			s.vel    = sb.v;
 			s.angVel = sb.w;
 		}
+		if (b->isClumpMember()) continue;
 		s.pos += 0.5 * h * (s.vel + br.pv);
 		rotate(s.ori, s.angVel + br.pw, 0.5 * h);
 	}
+	moveClumpMembers();
 }
 
 void ContactDynamicsIntegrator::restoreStartOfStep()
@@ -526,6 +567,17 @@ void ContactDynamicsIntegrator::storeResults()
 		scene->forces.addTorque(c.b2, c.c2.cross(P) / h);
 		scene->forces.addForce(c.b1, -P / h);
 		scene->forces.addTorque(c.b1, -c.c1.cross(P) / h);
+		// a clump member also gets its own contact force, about its own centre (YADE's
+		// utilities and exporters read members; the clump holds the sum, as after NewtonIntegrator)
+		const Interaction& I = *links[c.origin];
+		if (I.getId2() != c.b2) {
+			scene->forces.addForce(I.getId2(), P / h);
+			scene->forces.addTorque(I.getId2(), memberLever[c.origin].second.cross(P) / h);
+		}
+		if (I.getId1() != c.b1) {
+			scene->forces.addForce(I.getId1(), -P / h);
+			scene->forces.addTorque(I.getId1(), -memberLever[c.origin].first.cross(P) / h);
+		}
 	}
 	scene->forces.sync();
 
@@ -578,7 +630,9 @@ void ContactDynamicsIntegrator::trackEnergy()
 			if (sb.invM[k] == 0) g[k] = 0;
 		gravWork -= s.mass * g.dot(s.pos - start[b->id].pos);
 		posCorr += s.mass * g.dot(0.5 * h * br.pv);
-		extWork -= h * (scene->forces.getForce(b->id).dot(0.5 * (br.vi + sb.v)) + scene->forces.getTorque(b->id).dot(0.5 * (br.wi + sb.w)));
+		Vector3r F = scene->forces.getForce(b->id), T = scene->forces.getTorque(b->id);
+		if (b->isClump()) static_cast<Clump*>(b->shape.get())->addForceTorqueFromMembers(&s, scene, F, T); // members' external forces
+		extWork -= h * (F.dot(0.5 * (br.vi + sb.v)) + T.dot(0.5 * (br.wi + sb.w)));
 	}
 	scene->energy->add(kinetic, "kinetic", kinEnergyIx, /*reset*/ true);
 	scene->energy->add(gravWork, "gravWork", fieldWorkIx, false);

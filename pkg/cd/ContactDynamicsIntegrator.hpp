@@ -83,12 +83,18 @@ private:
 	cd::Solver                           core;  // bodies, contacts and the solver (pkg/cd/core)
 	std::vector<StartOfStep>             start;
 	std::vector<shared_ptr<Interaction>> links; // the interaction of each contact, by ContactInfo::origin
+	// Clumps: the solver moves a clump as one rigid body; its members follow it (Clump::moveMembers).
+	std::vector<int>                     mover;        // body id -> the id the solver moves: itself, or its clump
+	std::vector<int>                     clumps;       // ids of the clump bodies
+	std::vector<std::pair<Vector3r, Vector3r>> memberLever; // by ContactInfo::origin: contact point minus the touching bodies' own centres, at q_m
 
 	cd::Params params() const;
 	void       checkScene();
 	void       checkInheritedAttributes() const;
 	void       gatherContacts();
 	void       predictPositions();
+	void       moveClumpMembers();
+	void       checkClumpMember(const Body& b, const string& who);
 	void       updateContactFrames();
 	void       computeFreeVelocities();
 	void       writeProblemFile();
@@ -111,7 +117,7 @@ public:
 #endif
 	// clang-format off
 	YADE_CLASS_BASE_DOC_ATTRS_CTOR_PY(ContactDynamicsIntegrator, NewtonIntegrator,
-		"Moreau's Contact Dynamics (non-smooth, rigid-contact) time integrator [Moreau1988]_, replacing :yref:`NewtonIntegrator` in a CD scene. Each step: q_m = q_i + h/2·u_i; contact frames at q_m; an implicit velocity step in which all contact impulses are solved together by nonlinear Gauss–Seidel with the exact Signorini–Coulomb law (unilateral contact, Coulomb cone, Moreau's restitution mean); q_f = q_m + h/2·u_f. Contacts come from :yref:`Law2_ScGeom_CDPhys_Coulomb` / :yref:`CDPhys`. Gravity comes from :yref:`gravity<NewtonIntegrator.gravity>`; other forces in ``O.forces`` (``addF``, ``setPermF``, :yref:`GravityEngine`) enter the free velocity too. Fixed bodies and :yref:`blockedDOFs<State.blockedDOFs>` keep their velocity (moving walls are time-dependent obstacles). Results: contact forces in :yref:`CDPhys`, per-body totals in ``O.forces`` (gravity excluded, as with NewtonIntegrator), energies with ``O.trackEnergy``. Unsupported: periodic cells, clumps; :yref:`damping<NewtonIntegrator.damping>` must stay 0, and the other inherited attributes it does not honour (``mask``, ``callbacks`` in builds that have them, ``exactAsphericalRot``, ``rotAlgorithm``, ``normalizeEvery``, ``niterOmelyan1998``, ``kinSplit``, ``dampGravity``) are refused at the first step when not at NewtonIntegrator's defaults. See the plugin's ``docs/method.md``.",
+		"Moreau's Contact Dynamics (non-smooth, rigid-contact) time integrator [Moreau1988]_, replacing :yref:`NewtonIntegrator` in a CD scene. Each step: q_m = q_i + h/2·u_i; contact frames at q_m; an implicit velocity step in which all contact impulses are solved together by nonlinear Gauss–Seidel with the exact Signorini–Coulomb law (unilateral contact, Coulomb cone, Moreau's restitution mean); q_f = q_m + h/2·u_f. Contacts come from :yref:`Law2_ScGeom_CDPhys_Coulomb` / :yref:`CDPhys`. Gravity comes from :yref:`gravity<NewtonIntegrator.gravity>`; other forces in ``O.forces`` (``addF``, ``setPermF``, :yref:`GravityEngine`) enter the free velocity too. Fixed bodies and :yref:`blockedDOFs<State.blockedDOFs>` keep their velocity (moving walls are time-dependent obstacles). Results: contact forces in :yref:`CDPhys`, per-body totals in ``O.forces`` (gravity excluded, as with NewtonIntegrator), energies with ``O.trackEnergy``. Clumps of spheres (:yref:`Clump`) are moved as rigid bodies: their members' contacts and forces act on the clump, with lever arms from its centre of mass, and the members follow it; pairs within a clump never meet (YADE's collider). Unsupported: periodic cells; :yref:`damping<NewtonIntegrator.damping>` must stay 0, and the other inherited attributes it does not honour (``mask``, ``callbacks`` in builds that have them, ``exactAsphericalRot``, ``rotAlgorithm``, ``normalizeEvery``, ``niterOmelyan1998``, ``kinSplit``, ``dampGravity``) are refused at the first step when not at NewtonIntegrator's defaults. See the plugin's ``docs/method.md``.",
 		((Real, tolerance, 1e-6, Attr::triggerPostLoad, "Convergence threshold of the Gauss–Seidel solve on the relative natural-map residual :yref:`residual<ContactDynamicsIntegrator.residual>` [-], in (0, 1)."))
 		((int, maxIter, 1000, Attr::triggerPostLoad, "Maximum number of Gauss–Seidel sweeps per step. A step that stops here unconverged warns and counts in :yref:`nUnconverged<ContactDynamicsIntegrator.nUnconverged>`."))
 		((int, checkEvery, 1, Attr::triggerPostLoad, "Evaluate the exact residual (a pass that costs about one sweep) at most every this many sweeps, and only after a sweep whose own velocity changes sqrt(Σ(W_NN|Δr|)²) fell below tolerance·‖q‖ (or every checked sweep with recordResidual)."))

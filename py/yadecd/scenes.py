@@ -38,6 +38,37 @@ def sphere_on_plane(theta, mu, r=0.01, dt=1e-4, density=1000.0):
     return {'sphere': s, 'floor': floor, 'g': g, 'r': r}
 
 
+def dimer(centre, axis, r=0.01, spacing=2.2, material=None, fixed=False):
+    """Append a clump of two equal spheres of radius ``r``, centres ``spacing``·r apart along the
+    unit vector ``axis`` about ``centre`` (apart, not touching, so that YADE computes the clump's
+    mass and inertia exactly: m = 2 m_s, I about the axis = 2·(2/5) m_s r²). Returns
+    ``(clump id, [member ids])``."""
+    a = Vector3(*axis).normalized()
+    c = Vector3(*centre)
+    half = 0.5 * spacing * r
+    kw = {} if material is None else {'material': material}
+    members = [utils.sphere(tuple(c + k * half * a), r, **kw) for k in (-1, 1)]
+    cid, ids = O.bodies.appendClumped(members)
+    if fixed:
+        O.bodies[cid].state.blockedDOFs = 'xyzXYZ'
+    return cid, list(ids)
+
+
+def dimer_on_plane(theta, mu, along=True, r=0.01, dt=1e-4, spacing=2.2, density=1000.0, **opts):
+    """A :func:`dimer` resting with both spheres on the wall z=0 under gravity tilted by
+    ``theta`` in the x–z plane (a plane inclined at ``theta``, downhill +x), its axis along the
+    slope (x, ``along``) or across it (y). Returns ``{'clump', 'members', 'floor', 'g', 'r'}``."""
+    O.reset()
+    g = 9.81
+    mat = material(mu, density)
+    floor = O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    cid, ids = dimer((0, 0, r), (1, 0, 0) if along else (0, 1, 0), r, spacing, mat)
+    opts.setdefault('tolerance', 1e-12)
+    O.engines = engines(gravity=(g * math.sin(theta), 0, -g * math.cos(theta)), **opts)
+    O.dt = dt
+    return {'clump': cid, 'members': ids, 'floor': floor, 'g': g, 'r': r}
+
+
 def column(n, r=0.01, mu=0.3, dt=1e-4, gap=0.0, density=1000.0, **opts):
     """``n`` equal spheres stacked on the wall z=0, touching (or ``gap`` apart), at rest.
     Returns ``{'ids': [...], 'm': mass}`` (ids bottom to top)."""

@@ -348,7 +348,7 @@ class TestChecksBeforeWork(unittest.TestCase):
 
     def test_command_line(self):
         """scripts/pile.py: exit 2 and one line naming the value, before YADE steps."""
-        for args, expect in ((['--tolerance', '-1'], 'tolerance must be in (0, 1)'),
+        for args, expect in ((['--tolerance', '-1'], 'tolerance=-1.0: ContactDynamicsIntegrator.tolerance=-1.000000: must lie in (0, 1)'),
                              (['--n-grains', 'many'], "invalid int value: 'many'"),
                              (['--resume', '--overwrite'], 'exclude each other')):
             with self.subTest(args=args):

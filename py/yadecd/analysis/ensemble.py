@@ -22,7 +22,7 @@ from .. import analysis as pa
 from ..io import jsonable
 from ..pile.protocol import DEFAULTS, feed_time
 from ..runs import ensemble as ens
-from . import figures as pf
+from . import figures as pf, report
 
 CM, DPA = 100.0, 10.0
 CACHE_VERSION = 7
@@ -60,7 +60,7 @@ def _num(x):
 def run_record(snap_path, params):
     """The numbers of one snapshot that the ensemble statistics use (a JSON-ready dict)."""
     snap = pa.load_snapshot(snap_path)
-    m = pf.measure(snap)
+    m = report.measure(snap)
     prof, gp, dip, recip, law = m['prof'], m['gp'], m['dip'], m['recip'], m['law']
     hydro = gp['hydrostatic_Pa']
     free = ~snap['fixed']

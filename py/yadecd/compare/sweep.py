@@ -8,7 +8,6 @@ import os
 import sys
 import time
 
-import yadecd
 from yadecd import compare
 
 # ----------------------------------------------------------------------------------------------
@@ -127,16 +126,10 @@ def case_label(scene, case):
 
 
 def cd_build():
-    """Fingerprint of the installed CD plugin (it may be reinstalled while a sweep runs: rows
-    with different fingerprints are not comparable)."""
-    import hashlib
-    import glob
-    libdir = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(yadecd.__file__))))  # <libdir>/py/yadecd
-    so = glob.glob(os.path.join(libdir, 'plugins', 'libpkg_contactdynamics.so'))
-    if not so:
-        return 'unknown'
-    with open(so[0], 'rb') as f:
-        return hashlib.sha1(f.read()).hexdigest()[:10]
+    """Fingerprint of the loaded CD plugin (it may be reinstalled while a sweep runs: rows with
+    different fingerprints are not comparable)."""
+    from ..runs.runstate import plugin_digest
+    return plugin_digest()[:10]
 
 
 def run_all(csv_path, quick=False, scenes=None, resume=False, dry_run=False, momentum=False, max_wall=120.0):

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..runs import checkpoint as ck
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', '..'))  # the checkout
 
 
 def pile_command(run_dir, options=(), resume=False, repo=REPO):
