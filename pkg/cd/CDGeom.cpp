@@ -18,15 +18,31 @@ namespace {
 
 void Bo1_Sphere_CDAabb::go(const shared_ptr<Shape>& cm, shared_ptr<Bound>& bv, const Se3r& se3, const Body* b)
 {
-	// (periodic cells are rejected by the integrator; never throw here, inside an OpenMP loop)
+	// (never throw here: this runs inside an OpenMP loop)
 	const Real r = static_cast<Sphere*>(cm.get())->radius;
 	if (!bv) bv = shared_ptr<Bound>(new Aabb);
 	// each box grows by the sphere's whole alert distance (own radius and speed), so that an
 	// obstacle whose box does not grow (a fixed wall or facet) is covered too
-	const Real     grow = ContactDynamicsIntegrator::alertDistance(scene, r, b ? b->state->vel.norm() : Real(0));
-	const Vector3r half = Vector3r::Constant(r + grow);
-	bv->min             = se3.position - half;
-	bv->max             = se3.position + half;
+	const Real grow = ContactDynamicsIntegrator::alertDistance(scene, r, b ? b->state->vel.norm() : Real(0));
+	Vector3r   half = Vector3r::Constant(r + grow);
+	if (!scene->isPeriodic) {
+		bv->min = se3.position - half;
+		bv->max = se3.position + half;
+		return;
+	}
+	// periodic cell: YADE's box in the cell's unsheared frame (as Bo1_Sphere_Aabb), grown so that
+	// the sphere does not stick out of it when the cell is sheared
+	if (scene->cell->hasShear()) {
+		const Vector3r  ref = half;
+		const Vector3r& cos = scene->cell->getCos();
+		for (int i = 0; i < 3; i++) {
+			const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
+			half[i1] += .5 * ref[i1] * (1 / cos[i] - 1);
+			half[i2] += .5 * ref[i2] * (1 / cos[i] - 1);
+		}
+	}
+	bv->min = scene->cell->unshearPt(se3.position) - half;
+	bv->max = scene->cell->unshearPt(se3.position) + half;
 }
 
 bool Ig2_Sphere_Sphere_CDScGeom::go(

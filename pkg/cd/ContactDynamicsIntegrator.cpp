@@ -5,6 +5,7 @@
 #include "core/ProblemFile.hpp"
 #include "core/Schedule.hpp"
 #include "CDPhys.hpp"
+#include <core/Cell.hpp>
 #include <core/Clump.hpp>
 #include <core/Scene.hpp>
 #include <pkg/dem/ScGeom.hpp>
@@ -168,6 +169,7 @@ void ContactDynamicsIntegrator::action()
 {
 	timingDeltas->start();
 	checkScene();
+	startCellStep();                  // periodic cells: velGrad changes, as NewtonIntegrator
 	gatherContacts();                 // 1
 	timingDeltas->checkpoint("gatherContacts");
 	predictPositions();               // 2
@@ -188,6 +190,7 @@ void ContactDynamicsIntegrator::action()
 		throw;
 	}
 	storeResults();                   // 9
+	endCellStep();
 	timingDeltas->checkpoint("storeResults");
 }
 
@@ -238,7 +241,6 @@ void ContactDynamicsIntegrator::checkScene()
 {
 	const Real h = scene->dt;
 	if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("O.dt=" + std::to_string(h) + ": Contact Dynamics needs a positive, finite time step.");
-	if (scene->isPeriodic) throw std::invalid_argument("ContactDynamicsIntegrator: periodic cells are not supported.");
 	if (damping != 0) throw std::invalid_argument("ContactDynamicsIntegrator.damping=" + std::to_string(damping) + ": must be 0 (CD needs no numerical damping).");
 	if (!finite(gravity)) throw std::invalid_argument("ContactDynamicsIntegrator.gravity is not finite.");
 	checkInheritedAttributes();
@@ -257,6 +259,10 @@ void ContactDynamicsIntegrator::checkScene()
 		const string who = "body #" + std::to_string(b->id);
 		if (!finite(s.pos) || !finite(s.vel) || !finite(s.angVel))
 			throw std::invalid_argument(who + " has a NaN or infinite position or velocity.");
+		if (scene->isPeriodic && !b->isClump() && b->shape->getClassName() != "Sphere")
+			throw std::invalid_argument(
+			        who + " is a " + b->shape->getClassName()
+			        + " in a periodic cell: Contact Dynamics handles spheres and clumps of spheres there (a wall, facet or box has no periodic image).");
 		cd::Body&       sb = core.bodies[b->id];
 		cd::BodyRecord& br = core.records[b->id];
 		start[b->id]       = StartOfStep { s.pos, s.ori, true };
@@ -357,6 +363,10 @@ void ContactDynamicsIntegrator::gatherContacts()
 		c.et               = phys->et;
 		c.approach         = phys->approachVelocity;
 		c.warmStart        = phys->impulse;
+		if (scene->isPeriodic && I->cellDist != Vector3i::Zero()) {
+			c.shifted = true;
+			c.shift   = scene->cell->intrShiftVel(I->cellDist);
+		}
 		set.add(c, mu, phys->status);
 		links.push_back(I);
 	}
@@ -377,6 +387,69 @@ void ContactDynamicsIntegrator::predictPositions()
 		rotate(s.ori, s.angVel, 0.5 * h);
 	}
 	moveClumpMembers();
+}
+
+// Periodic cells, the start of a step, as NewtonIntegrator does it (YADE's conventions: the scene
+// has already moved the cell over this step with the velocity gradient of the step before):
+// a velGrad set by the user (Cell.nextVelGrad) takes effect now; with homoDeform > 0 every body's
+// velocity jumps by ΔL·x and its spin by the rotational part of ΔL (ΔL = velGrad − prevVelGrad),
+// so that bodies follow the new mean field; homoDeform > 1 adds the convective term h·L_prev·v
+// to the free velocities (computeFreeVelocities). A changing cell size tells the collider to run.
+void ContactDynamicsIntegrator::startCellStep()
+{
+	cellMaxVelocitySq = 0;
+	beforeJump.clear();
+	if (!scene->isPeriodic) return;
+	Cell& cell = *scene->cell;
+	if (cell.velGradChanged || cell.nextVelGrad != Matrix3r::Zero()) {
+		cell.velGrad        = cell.nextVelGrad;
+		cell.velGradChanged = false;
+		cell.nextVelGrad    = Matrix3r::Zero();
+	}
+	cellHomoDeform = cell.homoDeform;
+	cellDVelGrad   = cell.velGrad - prevVelGrad;
+	const Matrix3r R = 0.5 * (cellDVelGrad - cellDVelGrad.transpose());
+	cellDSpin            = Vector3r(-R(1, 2), R(0, 2), -R(0, 1));
+	if (!math::isnan(prevCellSize[0]) && prevCellSize != cell.getSize())
+		cellMaxVelocitySq = (prevCellSize - cell.getSize()).squaredNorm() / math::pow(scene->dt, 2);
+	if (!cellHomoDeform || cellDVelGrad == Matrix3r::Zero()) return;
+	beforeJump.resize(scene->bodies->size());
+	for (const auto& b : *scene->bodies) {
+		if (!b || b->isClumpMember()) continue; // members follow their clump
+		State&          s  = *b->state;
+		cd::Body&       sb = core.bodies[b->id];
+		cd::BodyRecord& br = core.records[b->id];
+		beforeJump[b->id]  = { s.vel, s.angVel };
+		s.vel += cellDVelGrad * s.pos;
+		s.angVel += cellDSpin;
+		br.vi = sb.v = s.vel;
+		br.wi = sb.w = s.angVel;
+	}
+	for (int id : clumps) {
+		Clump::moveMembers<NewtonIntegrator>(Body::byId(id, scene), scene, nullptr);
+		for (const auto& m : static_cast<const Clump*>(Body::byId(id, scene)->shape.get())->members) {
+			core.records[m.first].vi = Body::byId(m.first, scene)->state->vel;
+			core.records[m.first].wi = Body::byId(m.first, scene)->state->angVel;
+		}
+	}
+}
+
+// Periodic cells, the end of a step: the velocity gradient of this step becomes the previous one.
+void ContactDynamicsIntegrator::endCellStep()
+{
+	if (!scene->isPeriodic) return;
+	prevCellSize = scene->cell->getSize();
+	prevVelGrad = scene->cell->prevVelGrad = scene->cell->velGrad;
+}
+
+// The shift of body 2's periodic image for an interaction: Cell.hSize·cellDist, with the cell of
+// the step's middle (q_m) or of its start (q_i). Zero outside periodic cells.
+Vector3r ContactDynamicsIntegrator::imageShift(const Interaction& I, bool midStep) const
+{
+	if (!scene->isPeriodic || I.cellDist == Vector3i::Zero()) return Vector3r::Zero();
+	const Cell&    cell = *scene->cell;
+	const Matrix3r H    = midStep ? Matrix3r(0.5 * (cell.prevHSize + cell.hSize)) : cell.prevHSize;
+	return H * I.cellDist.cast<Real>();
 }
 
 // Members of every clump to the clump's position, orientation and velocity (rigidly, as YADE's
@@ -412,19 +485,21 @@ void ContactDynamicsIntegrator::updateContactFrames()
 		const auto&                    b2 = Body::byId(I->getId2(), scene);
 		ScGeom*                        g  = static_cast<ScGeom*>(I->geom.get());
 		const Vector3r                 ni = g->normal, Ci = g->contactPoint; // at q_i
-		I->functorCache.geom->go(b1->shape, b2->shape, *b1->state, *b2->state, Vector3r::Zero(), /*force*/ false, I);
+		const Vector3r                 shiftM = imageShift(*I, true); // body 2's periodic image (0 outside periodic cells)
+		I->functorCache.geom->go(b1->shape, b2->shape, *b1->state, *b2->state, shiftM, /*force*/ false, I);
 		Vector3r n = g->normal;
-		// lever arms from the bodies the solver moves (a clump's centre of mass for its members)
+		// lever arms from the bodies the solver moves (a clump's centre of mass for its members;
+		// body 2's image for a contact across a periodic boundary)
 		c.c1       = g->contactPoint - Body::byId(c.b1, scene)->state->pos;
-		c.c2       = g->contactPoint - Body::byId(c.b2, scene)->state->pos;
+		c.c2       = g->contactPoint - (Body::byId(c.b2, scene)->state->pos + shiftM);
 		c.gapM     = -g->penetrationDepth;
 		// A grain fast enough to move more than its radius in half a step can put its centre
 		// past an obstacle's centre or plane at q_m; the geometry there is then meaningless (a
 		// flipped normal). Keep the q_i frame and predict the gap linearly instead.
 		if (n.dot(ni) < 0.5 || -c.gapM > c.refR) {
 			const cd::BodyRecord &s1 = core.records[c.b1], &s2 = core.records[c.b2];
-			const Vector3r        c1 = Ci - start[c.b1].pos, c2 = Ci - start[c.b2].pos;
-			const Real            UiN = ni.dot((s2.vi + s2.wi.cross(c2)) - (s1.vi + s1.wi.cross(c1)));
+			const Vector3r        c1 = Ci - start[c.b1].pos, c2 = Ci - (start[c.b2].pos + imageShift(*I, false));
+			const Real            UiN = ni.dot((s2.vi + s2.wi.cross(c2)) - (s1.vi + s1.wi.cross(c1)) + c.shift);
 			n                         = ni;
 			c.c1                      = c1;
 			c.c2                      = c2;
@@ -434,7 +509,7 @@ void ContactDynamicsIntegrator::updateContactFrames()
 			g->penetrationDepth       = -c.gapM;
 		}
 		c.point           = g->contactPoint;
-		memberLever[c.origin] = { g->contactPoint - b1->state->pos, g->contactPoint - b2->state->pos };
+		memberLever[c.origin] = { g->contactPoint - b1->state->pos, g->contactPoint - (b2->state->pos + shiftM) };
 		const Vector3r t1 = orthogonalUnit(n);
 		c.frame.row(0)    = n;
 		c.frame.row(1)    = t1;
@@ -453,6 +528,7 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 		Vector3r  F  = scene->forces.getForce(b->id);
 		Vector3r  T  = scene->forces.getTorque(b->id);
 		if (b->isClump()) static_cast<Clump*>(b->shape.get())->addForceTorqueFromMembers(b->state.get(), scene, F, T);
+		if (scene->isPeriodic && cellHomoDeform > 1) sb.v += h * prevVelGrad * core.records[b->id].vi; // convective term (NewtonIntegrator's)
 		for (int k = 0; k < 3; ++k)
 			if (sb.invM[k] > 0) sb.v[k] += h * (F[k] * sb.invM[k] + gravity[k]);
 		sb.w += h * sb.invI * T;
@@ -537,7 +613,13 @@ void ContactDynamicsIntegrator::restoreStartOfStep()
 		b->state->ori    = start[b->id].ori;
 		b->state->vel    = core.records[b->id].vi;
 		b->state->angVel = core.records[b->id].wi;
+		if (size_t(b->id) < beforeJump.size() && !b->isClumpMember()) { // undo a periodic cell's velocity jump
+			b->state->vel    = beforeJump[b->id].first;
+			b->state->angVel = beforeJump[b->id].second;
+		}
 	}
+	for (int id : clumps)
+		Clump::moveMembers<NewtonIntegrator>(Body::byId(id, scene), scene, nullptr);
 }
 
 // Stage 9: impulses (warm start) and forces into CDPhys, contact forces into O.forces, energy,
@@ -581,8 +663,8 @@ void ContactDynamicsIntegrator::storeResults()
 	}
 	scene->forces.sync();
 
-	// collider hint: > 1 when some body left its bound's sweep distance
-	maxVelocitySq = 0;
+	// collider hint: > 1 when some body left its bound's sweep distance (or a periodic cell changed size)
+	maxVelocitySq = cellMaxVelocitySq;
 #ifdef YADE_OPENMP
 	std::fill(threadMaxVelocitySq.begin(), threadMaxVelocitySq.end(), Real(0));
 #endif

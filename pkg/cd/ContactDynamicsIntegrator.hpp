@@ -87,6 +87,13 @@ private:
 	std::vector<int>                     mover;        // body id -> the id the solver moves: itself, or its clump
 	std::vector<int>                     clumps;       // ids of the clump bodies
 	std::vector<std::pair<Vector3r, Vector3r>> memberLever; // by ContactInfo::origin: contact point minus the touching bodies' own centres, at q_m
+	// Periodic cells (YADE's conventions, as NewtonIntegrator): the collider hint of a changing
+	// cell, and the velocities before this step's homogeneous-deformation jump (to restore them)
+	Real                                       cellMaxVelocitySq = 0;
+	int                                        cellHomoDeform    = 0;                  // Cell.homoDeform of this step
+	Matrix3r                                   cellDVelGrad      = Matrix3r::Zero();   // velGrad − prevVelGrad
+	Vector3r                                   cellDSpin         = Vector3r::Zero();   // its rotational part
+	std::vector<std::pair<Vector3r, Vector3r>> beforeJump;
 
 	cd::Params params() const;
 	void       checkScene();
@@ -94,6 +101,9 @@ private:
 	void       gatherContacts();
 	void       predictPositions();
 	void       moveClumpMembers();
+	void       startCellStep();
+	void       endCellStep();
+	Vector3r   imageShift(const Interaction& I, bool midStep) const;
 	void       checkClumpMember(const Body& b, const string& who);
 	void       updateContactFrames();
 	void       computeFreeVelocities();
@@ -117,7 +127,7 @@ public:
 #endif
 	// clang-format off
 	YADE_CLASS_BASE_DOC_ATTRS_CTOR_PY(ContactDynamicsIntegrator, NewtonIntegrator,
-		"Moreau's Contact Dynamics (non-smooth, rigid-contact) time integrator [Moreau1988]_, replacing :yref:`NewtonIntegrator` in a CD scene. Each step: q_m = q_i + h/2·u_i; contact frames at q_m; an implicit velocity step in which all contact impulses are solved together by nonlinear Gauss–Seidel with the exact Signorini–Coulomb law (unilateral contact, Coulomb cone, Moreau's restitution mean); q_f = q_m + h/2·u_f. Contacts come from :yref:`Law2_ScGeom_CDPhys_Coulomb` / :yref:`CDPhys`. Gravity comes from :yref:`gravity<NewtonIntegrator.gravity>`; other forces in ``O.forces`` (``addF``, ``setPermF``, :yref:`GravityEngine`) enter the free velocity too. Fixed bodies and :yref:`blockedDOFs<State.blockedDOFs>` keep their velocity (moving walls are time-dependent obstacles). Results: contact forces in :yref:`CDPhys`, per-body totals in ``O.forces`` (gravity excluded, as with NewtonIntegrator), energies with ``O.trackEnergy``. Clumps of spheres (:yref:`Clump`) are moved as rigid bodies: their members' contacts and forces act on the clump, with lever arms from its centre of mass, and the members follow it; pairs within a clump never meet (YADE's collider). Unsupported: periodic cells; :yref:`damping<NewtonIntegrator.damping>` must stay 0, and the other inherited attributes it does not honour (``mask``, ``callbacks`` in builds that have them, ``exactAsphericalRot``, ``rotAlgorithm``, ``normalizeEvery``, ``niterOmelyan1998``, ``kinSplit``, ``dampGravity``) are refused at the first step when not at NewtonIntegrator's defaults. See the plugin's ``docs/method.md``.",
+		"Moreau's Contact Dynamics (non-smooth, rigid-contact) time integrator [Moreau1988]_, replacing :yref:`NewtonIntegrator` in a CD scene. Each step: q_m = q_i + h/2·u_i; contact frames at q_m; an implicit velocity step in which all contact impulses are solved together by nonlinear Gauss–Seidel with the exact Signorini–Coulomb law (unilateral contact, Coulomb cone, Moreau's restitution mean); q_f = q_m + h/2·u_f. Contacts come from :yref:`Law2_ScGeom_CDPhys_Coulomb` / :yref:`CDPhys`. Gravity comes from :yref:`gravity<NewtonIntegrator.gravity>`; other forces in ``O.forces`` (``addF``, ``setPermF``, :yref:`GravityEngine`) enter the free velocity too. Fixed bodies and :yref:`blockedDOFs<State.blockedDOFs>` keep their velocity (moving walls are time-dependent obstacles). Results: contact forces in :yref:`CDPhys`, per-body totals in ``O.forces`` (gravity excluded, as with NewtonIntegrator), energies with ``O.trackEnergy``. Clumps of spheres (:yref:`Clump`) are moved as rigid bodies: their members' contacts and forces act on the clump, with lever arms from its centre of mass, and the members follow it; pairs within a clump never meet (YADE's collider). Periodic cells (``O.periodic``) follow YADE's conventions: a contact across the boundary is with body 2's image at x₂ + H·cellDist moving at v₂ + :yref:`Cell.velGrad`·H_prev·cellDist, a velGrad set by the user takes effect at the next step with NewtonIntegrator's velocity jump (:yref:`Cell.homoDeform` > 0) and convective term (homoDeform > 1); walls, facets and boxes have no image there and are refused. :yref:`damping<NewtonIntegrator.damping>` must stay 0, and the other inherited attributes it does not honour (``mask``, ``callbacks`` in builds that have them, ``exactAsphericalRot``, ``rotAlgorithm``, ``normalizeEvery``, ``niterOmelyan1998``, ``kinSplit``, ``dampGravity``) are refused at the first step when not at NewtonIntegrator's defaults. See the plugin's ``docs/method.md``.",
 		((Real, tolerance, 1e-6, Attr::triggerPostLoad, "Convergence threshold of the Gauss–Seidel solve on the relative natural-map residual :yref:`residual<ContactDynamicsIntegrator.residual>` [-], in (0, 1)."))
 		((int, maxIter, 1000, Attr::triggerPostLoad, "Maximum number of Gauss–Seidel sweeps per step. A step that stops here unconverged warns and counts in :yref:`nUnconverged<ContactDynamicsIntegrator.nUnconverged>`."))
 		((int, checkEvery, 1, Attr::triggerPostLoad, "Evaluate the exact residual (a pass that costs about one sweep) at most every this many sweeps, and only after a sweep whose own velocity changes sqrt(Σ(W_NN|Δr|)²) fell below tolerance·‖q‖ (or every checked sweep with recordResidual)."))

@@ -100,15 +100,22 @@ def tetrahedron(r=0.01, mu=0.5, dt=1e-4, **opts):
 
 
 def binary_collision(v1, v2, r1=0.01, r2=0.015, rho1=1000.0, rho2=3000.0, offset=0.0, mu=0.5,
-                     en=0.0, et=0.0, dt=1e-5, gap=0.0):
+                     en=0.0, et=0.0, dt=1e-5, gap=0.0, period=None):
     """Two free spheres (no gravity) whose contact normal is x, body 1 on the left, touching
     (``gap`` = 0) or ``gap`` apart; ``offset`` shifts sphere 2 along y (the normal is then
-    still set by the centres). Velocities ``v1``, ``v2`` are 3-vectors."""
+    still set by the centres). Velocities ``v1``, ``v2`` are 3-vectors. With ``period`` [m] the
+    scene is a periodic cube of that side, body 1 against its +x face and body 2 one period back
+    (x2 − period): they meet across the boundary, body 2 through its image."""
     O.reset()
     m1, m2 = material(mu, rho1), material(mu, rho2)
-    b1 = O.bodies.append(utils.sphere((0, 0, 0), r1, material=m1))
+    x1 = 0.0 if period is None else period - r1
+    b1 = O.bodies.append(utils.sphere((x1, 0, 0), r1, material=m1))
     dist = r1 + r2 + gap
-    b2 = O.bodies.append(utils.sphere((math.sqrt(dist ** 2 - offset ** 2), offset, 0), r2, material=m2))
+    x2 = x1 + math.sqrt(dist ** 2 - offset ** 2) - (0.0 if period is None else period)
+    b2 = O.bodies.append(utils.sphere((x2, offset, 0), r2, material=m2))
+    if period is not None:
+        O.periodic = True
+        O.cell.setBox(period, period, period)
     O.bodies[b1].state.vel = Vector3(*v1)
     O.bodies[b2].state.vel = Vector3(*v2)
     O.engines = engines(gravity=(0, 0, 0), en=en, et=et, tolerance=1e-13)

@@ -81,15 +81,6 @@ class TestBadInput(unittest.TestCase):
         b = O.bodies.append(utils.box((0, 0, 0.005), (0.01, 0.01, 0.01), fixed=False))
         self.assertStepFails(ValueError, 'Box', 'Wall', '#%d' % b)
 
-    def test_periodic(self):
-        scenes.column(1)
-        O.periodic = True
-        O.cell.hSize = Matrix3(10, 0, 0, 0, 10, 0, 0, 0, 10)
-        O.bodies.erase(0)  # the infinite wall cannot be periodic
-        with self.assertRaises((ValueError, RuntimeError)) as cm:
-            O.step()
-        self.assertIn('periodic', str(cm.exception))
-
     def test_nan_state(self):
         sc = scenes.column(2)
         O.bodies[sc['ids'][1]].state.vel = Vector3(float('nan'), 0, 0)

@@ -52,11 +52,14 @@ namespace cd {
 		Real     en = 0, et = 0;    // restitution coefficients
 		Vector3r approach;          // landing velocity of the previous step (global frame; 0: none)
 		Vector3r warmStart;         // impulse of the previous step (global frame)
+		bool     shifted = false;   // body 2 is a periodic image: its velocity there is v2 + shift
+		Vector3r shift = Vector3r::Zero(); // velocity of body 2's image relative to body 2 (global; YADE's Cell::intrShiftVel)
 		// from the assembly (stage 5)
 		Matrix3r W;                 // Delassus block
 		Vector3r A;                 // law scaling
 		Vector3r s;                 // law offset: e∘U_i (closed) or (2 g_m/h, 0, 0) (open)
 		Vector3r Ui;                // U_i, local frame
+		Vector3r Us = Vector3r::Zero(); // the image's shift velocity, local frame (part of every U of a shifted contact)
 	};
 
 	/*! What every pass over the contacts reads and writes (the sweep, the momentum pass, the

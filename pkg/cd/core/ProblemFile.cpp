@@ -99,6 +99,7 @@ namespace cd {
 		o << "contacts " << set.size() << '\n';
 		for (size_t k = 0; k < set.size(); ++k) {
 			const ContactInfo& c = set.info[k];
+			if (c.shifted) throw std::invalid_argument("problem files hold no periodic images yet: a periodic scene's step cannot be saved.");
 			o << "contact " << c.b1 << ' ' << c.b2 << ' ' << set.state[k].mu << ' ' << set.state[k].status;
 			put(o, c.frame);
 			put(o, c.c1);

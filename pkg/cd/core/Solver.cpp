@@ -51,6 +51,10 @@ namespace cd {
 			qShare[k]            = 0;
 			if (!(c.W(0, 0) > 0)) continue; // reported below, outside the parallel loop
 			c.Ui = c.frame * ((r2.vi + r2.wi.cross(c.c2)) - (r1.vi + r1.wi.cross(c.c1)));
+			if (c.shifted) { // a periodic image moves with the cell: its velocity enters every U
+				c.Us = c.frame * c.shift;
+				c.Ui += c.Us;
+			}
 			if (c.gapM > 0) {
 				c.A = Vector3r::Ones();
 				c.s = Vector3r(2 * c.gapM / h, 0, 0);
@@ -122,7 +126,7 @@ namespace cd {
 		const Real wn = h.m1 + h.m2, wt = wn + h.l1 * h.k1 + h.l2 * h.k2;
 		h.Wd          = c.A.cwiseProduct(Vector3r(wn, wt, wt));
 		h.A           = c.A;
-		h.bias        = c.A.cwiseProduct(c.s);
+		h.bias        = c.shifted ? Vector3r(c.A.cwiseProduct(c.s + c.Us)) : Vector3r(c.A.cwiseProduct(c.s));
 		h.wnn         = wn;
 		h.b1 = c.b1, h.b2 = c.b2;
 	}
@@ -132,7 +136,8 @@ namespace cd {
 		const ContactInfo& c  = contacts.info[k];
 		const Body&        b1 = bodies[c.b1];
 		const Body&        b2 = bodies[c.b2];
-		return c.frame * ((b2.v + b2.w.cross(c.c2)) - (b1.v + b1.w.cross(c.c1)));
+		const Vector3r     U  = c.frame * ((b2.v + b2.w.cross(c.c2)) - (b1.v + b1.w.cross(c.c1)));
+		return c.shifted ? Vector3r(U + c.Us) : U;
 	}
 
 	// ------------------------------------------------------------------------- the two kernels

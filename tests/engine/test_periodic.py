@@ -1,0 +1,165 @@
+"""Periodic cells under Contact Dynamics, with YADE's conventions (NewtonIntegrator's and Cell's).
+
+- A contact across the boundary is a contact with body 2's image at x₂ + H·cellDist, which
+  moves at v₂ + L·H_prev·cellDist (Cell.intrShiftVel); the solve sees exactly that image.
+- A velocity gradient set by the user takes effect at the next step, every body's velocity
+  jumping by ΔL·x (homoDeform > 0) and, with homoDeform > 1, gaining the convective term h·L·v:
+  bodies that move with the mean field keep doing so.
+- Walls, facets and boxes have no periodic image: refused, by name.
+"""
+from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
+import math
+import unittest
+
+import numpy as np
+from yade import O, utils, Vector3, Matrix3
+from yade.wrapper import (ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb, NewtonIntegrator)
+
+import yadecd
+from yadecd import scenes
+
+
+def history(ids, steps):
+    """Velocities and positions of ``ids`` after each of ``steps`` steps."""
+    out = []
+    for _ in range(steps):
+        O.step()
+        out.append([list(O.bodies[i].state.vel) + list(O.bodies[i].state.pos) for i in ids])
+    return np.array(out)
+
+
+class TestCollisionAcrossTheBoundary(unittest.TestCase):
+    """Two spheres meeting across the periodic boundary collide as they do in open space: the
+    same velocities at every step (to round-off) and positions one period apart; after the
+    impact, the textbook binary collision with restitution e (normal x):
+    v₁' = v₁ − (1+e) m₂ (v₁−v₂)/(m₁+m₂), v₂' = v₂ + (1+e) m₁ (v₁−v₂)/(m₁+m₂)."""
+
+    def run_both(self, **kw):
+        scenes.binary_collision((1.0, 0, 0), (-0.5, 0, 0), gap=2e-4, **kw)
+        open_space = history((0, 1), 60)
+        masses = [O.bodies[i].state.mass for i in (0, 1)]
+        scenes.binary_collision((1.0, 0, 0), (-0.5, 0, 0), gap=2e-4, period=0.2, **kw)
+        periodic = history((0, 1), 60)
+        return open_space, periodic, masses
+
+    def test_inelastic_and_elastic(self):
+        for e in (0.0, 0.6, 1.0):
+            with self.subTest(e=e):
+                a, b, (m1, m2) = self.run_both(en=e)
+                np.testing.assert_allclose(b[:, :, :3], a[:, :, :3], rtol=0, atol=1e-12)
+                shift = np.array([0.2 - 0.01, 0, 0])                      # body 1 sits at period − r1
+                np.testing.assert_allclose(b[:, 0, 3:] - shift, a[:, 0, 3:], rtol=0, atol=1e-12)
+                np.testing.assert_allclose(b[:, 1, 3:] - shift + [0.2, 0, 0], a[:, 1, 3:], rtol=0, atol=1e-12)
+                v1, v2 = 1.0, -0.5
+                v1e = v1 - (1 + e) * m2 * (v1 - v2) / (m1 + m2)
+                v2e = v2 + (1 + e) * m1 * (v1 - v2) / (m1 + m2)
+                self.assertAlmostEqual(b[-1, 0, 0], v1e, delta=1e-12)
+                self.assertAlmostEqual(b[-1, 1, 0], v2e, delta=1e-12)
+
+    def test_oblique_with_friction(self):
+        a, b, _ = self.run_both(offset=0.008, mu=0.3, en=0.4)
+        np.testing.assert_allclose(b[:, :, :3], a[:, :, :3], rtol=0, atol=1e-12)
+
+
+class TestImageVelocity(unittest.TestCase):
+    """Uniaxial compression of the cell along y, L = diag(0, −ε̇, 0), bodies moving with the mean
+    field (v = L x after the first step's jump): a sphere near the top face and another near the
+    bottom face approach each other through the boundary at ε̇·(y₂ + L_y − y₁), the velocity of
+    the image relative to body 1. The step they land in closes the gap (U_N = −2 g_m/h); from
+    the next step (closed, inelastic, frictionless) the image's relative normal velocity
+    v₂ + L·H_prev·cellDist − v₁ is zero and the momentum of the pair is unchanged (homoDeform 1:
+    no convective term). (Later the image, whose velocity L·H shrinks with the cell, draws away
+    from body 1, whose velocity no convective term changes: the contact opens, as it should.)"""
+
+    def test_contact_through_the_image_stops_the_approach(self):
+        O.reset()
+        Ly, r, rate = 0.1, 0.01, 2.0
+        mat = scenes.material(0.0)
+        b1 = O.bodies.append(utils.sphere((0.05, Ly - r - 1e-4, 0.05), r, material=mat))
+        b2 = O.bodies.append(utils.sphere((0.05, r + 1e-4, 0.05), r, material=mat))
+        O.periodic = True
+        O.cell.setBox(0.1, Ly, 0.1)
+        O.cell.homoDeform = 1                      # no convective term: momentum is the impulses'
+        O.engines = yadecd.engines(gravity=(0, 0, 0), tolerance=1e-14, maxIter=10000)
+        O.dt = 1e-5
+        O.cell.velGrad = Matrix3(0, 0, 0, 0, -rate, 0, 0, 0, 0)
+        touched, checked = None, False
+        for step in range(2000):                  # they meet after about 2e-4 m / (ε̇ · 0.0202 m) = 500 steps
+            p_before = sum((O.bodies[i].state.mass * O.bodies[i].state.vel for i in (b1, b2)), Vector3(0, 0, 0))
+            O.step()
+            i = O.interactions[b1, b2] if O.interactions.has(b1, b2) else None
+            if touched is None:
+                if i is not None and i.isReal and i.phys.normalForce.norm() > 0:
+                    touched = step                # the landing step closes the gap: U_N = −2 g_m/h ≠ 0
+                continue
+            self.assertTrue(i is not None and i.isReal, 'the contact with the image was lost')
+            # from the next step on the contact is closed: no relative normal velocity with the image
+            self.assertNotEqual(tuple(i.cellDist), (0, 0, 0))
+            shift_vel = O.cell.velGrad * (O.cell.prevHSize * Vector3(*i.cellDist))
+            v1, v2 = O.bodies[i.id1].state.vel, O.bodies[i.id2].state.vel
+            n = i.geom.normal
+            self.assertAlmostEqual(n.dot(v2 + shift_vel - v1), 0, delta=1e-12)
+            p_after = sum((O.bodies[j].state.mass * O.bodies[j].state.vel for j in (b1, b2)), Vector3(0, 0, 0))
+            self.assertLess((p_after - p_before).norm(), 1e-15)
+            self.assertGreater(i.phys.normalForce.norm(), 0, 'the closed contact pushes')
+            checked = True
+            break
+        touched = checked
+        self.assertTrue(touched, 'the spheres never met through the boundary')
+
+
+class TestContactFreeShear(unittest.TestCase):
+    """Simple shear, L = γ̇ e_x ⊗ e_y, set at step 0 on spheres at rest far apart: the first
+    step's jump gives each v = L x, and then (L² = 0, no convective change) x(t) = x₀ + t·L·x₀.
+    NewtonIntegrator does the same: positions and velocities agree to round-off at every step."""
+
+    def build(self, cd):
+        O.reset()
+        O.periodic = True
+        O.cell.setBox(0.2, 0.2, 0.2)
+        mat = scenes.material(0.5)
+        for x in ((0.03, 0.03, 0.03), (0.13, 0.08, 0.1), (0.07, 0.17, 0.15)):
+            O.bodies.append(utils.sphere(x, 0.01, material=mat))
+        if cd:
+            O.engines = yadecd.engines(gravity=(0, 0, 0))
+        else:
+            O.engines = [ForceResetter(), InsertionSortCollider([Bo1_Sphere_Aabb()]), NewtonIntegrator(damping=0)]
+        O.dt = 1e-4
+        O.cell.velGrad = Matrix3(0, 0.5, 0, 0, 0, 0, 0, 0, 0)
+
+    def test_moves_as_under_newton(self):
+        out = {}
+        for cd in (True, False):
+            self.build(cd)
+            x0 = [np.array(b.state.pos) for b in O.bodies]
+            out[cd] = history(range(3), 300)
+            out[cd, 'H'] = np.array(O.cell.hSize)
+        np.testing.assert_allclose(out[True], out[False], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(out[True, 'H'], out[False, 'H'], rtol=0, atol=1e-15)
+        t = 300 * 1e-4
+        for k in range(3):            # the exact affine motion: x = x0 + t L x0, v = L x0
+            L = np.array([[0, 0.5, 0], [0, 0, 0], [0, 0, 0]])
+            np.testing.assert_allclose(out[True][-1, k, 3:], x0[k] + t * L @ x0[k], rtol=0, atol=1e-13)
+            np.testing.assert_allclose(out[True][-1, k, :3], L @ x0[k], rtol=0, atol=1e-13)
+
+
+class TestPeriodicBadInput(unittest.TestCase):
+
+    def test_box_in_a_periodic_cell(self):
+        """A box has no periodic image: refused, naming it, before anything moves. (A wall is
+        refused earlier by YADE's own collider: its bound spans the cell.)"""
+        O.reset()
+        O.periodic = True
+        O.cell.setBox(0.1, 0.1, 0.1)
+        box = O.bodies.append(utils.box((0.05, 0.05, 0.02), (0.01, 0.01, 0.01), fixed=True))
+        s = O.bodies.append(utils.sphere((0.05, 0.05, 0.05), 0.01))
+        O.engines = yadecd.engines(gravity=(0, 0, -9.81))
+        O.dt = 1e-4
+        with self.assertRaises(ValueError) as cm:
+            O.step()
+        self.assertIn('body #%d' % box, str(cm.exception))
+        self.assertIn('periodic', str(cm.exception))
+        self.assertEqual(tuple(O.bodies[s].state.pos), (0.05, 0.05, 0.05))
+
+if __name__ == '__main__':
+    unittest.main()
