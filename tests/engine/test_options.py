@@ -105,16 +105,12 @@ class TestSchedule(unittest.TestCase):
                 self.assertEqual(yadecd.integrator().schedule, name)
 
     def test_old_checkpoint_archive_loads_with_a_named_schedule(self):
-        # tests/data's first-release checkpoint holds YADE's archive of a pile run (slabs, code 5,
-        # or whatever its run.json says): the engine it loads has the matching schedule name
+        # tests/data's first-release checkpoint holds YADE's archive of a pile run (sweepOrder 5
+        # in its run.json): the engine it loads has the matching schedule name
         base = os.path.join(DATA, 'checkpoint_release_6e7a405')
         scene = [os.path.join(r, f) for r, _, fs in os.walk(base) for f in fs if f.endswith('.yade.gz')]
         self.assertTrue(scene, 'no archive in %s' % base)
-        try:
-            O.load(scene[0])
-        except Exception as e:      # an archive of another class layout: state.npz is its way back
-            self.skipTest('the first-release archive does not load in this build (%s); runs resume from '
-                          'state.npz instead (tests/runs/test_runstate.py)' % e)
+        O.load(scene[0])           # the class layout is unchanged: the archive must load (it resumes bit for bit)
         cd = yadecd.integrator()
         self.assertEqual(cd.schedule, CODES[cd.sweepOrder])
         old = protocol.read_run_json(os.path.join(base, 'run.json'))
