@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """Ensembles of Moreau sand piles: run them, watch them, analyse them.
 
-    python3 scripts/pile_ensemble.py run OUT --sizes 300,1000,2000 --seeds 1-8 [--relax 1] [--jobs 2] [-- PILE OPTIONS]
+    python3 scripts/pile_ensemble.py run OUT --sizes 300,1000,2000 --seeds 1-8 [--relax 1] [--jobs 2 | --scheduler tcp://HOST:8786] [-- PILE OPTIONS]
     python3 scripts/pile_ensemble.py status OUT
     python3 scripts/pile_ensemble.py analyse OUT [--out DIR]
 
-``run`` starts one YADE process per pile (``scripts/pile.py``, one thread each, ``--jobs`` at a
-time), snapshots at half the feed, at the end of the feed and after ``--relax`` seconds of
+``run`` runs each pile as a task of Dask's distributed engine, one YADE process per pile
+(``scripts/pile.py``, one thread each): on a local cluster of ``--jobs`` workers, or on the
+workers of the Dask scheduler given by ``--scheduler`` (several machines sharing the directories);
+snapshots at half the feed, at the end of the feed and after ``--relax`` seconds of
 relaxation. Calling it again resumes: finished runs are skipped, interrupted ones continue from
 their checkpoints, failed ones are reported (``--retry-failed`` tries them again). ``analyse``
 runs the pile analysis on every snapshot of every finished run and writes per-run summaries,
@@ -34,7 +36,10 @@ def main(argv=None):
     r.add_argument('--sizes', default='2000', help='grain counts, comma-separated')
     r.add_argument('--seeds', default='1-8', help="seeds: '1-8' or '1,2,5'")
     r.add_argument('--relax', type=float, default=1.0, help='relaxation after the feed [s]')
-    r.add_argument('--jobs', type=int, default=2, help='runs at a time (one thread each)')
+    r.add_argument('--jobs', type=int, default=2, help='runs at a time on the local cluster (one single-threaded worker each)')
+    r.add_argument('--scheduler', default=None, metavar='ADDRESS',
+                   help='a Dask scheduler (tcp://host:8786) whose workers run the piles instead of a local cluster; '
+                        'they must see OUT and this checkout at the same paths')
     r.add_argument('--order', choices=('small-first', 'large-first'), default='small-first')
     r.add_argument('--retry-failed', action='store_true')
     s = sub.add_parser('status', help='one line per run')
@@ -64,7 +69,7 @@ def main(argv=None):
         except ValueError as err:
             p.error(str(err))
         ens.run_ensemble(args.out, REPO, jobs=args.jobs, order=args.order, retry_failed=args.retry_failed,
-                         log=lambda m: print(m, flush=True))
+                         log=lambda m: print(m, flush=True), scheduler=args.scheduler)
         print('\n'.join(ens.status_lines(args.out)))
         failed = [k for k, v in ens.Ensemble(args.out).runs().items() if v['state'] == 'failed']
         if failed:

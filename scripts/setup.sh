@@ -29,7 +29,7 @@ say() { printf '[setup %4ds] %s\n' $(( $(date +%s) - T0 )) "$*"; }
 # ---------------------------------------------------------------- 1. system packages
 PKGS="cmake g++ ninja-build libboost-all-dev libeigen3-dev python3-dev python3-numpy python3-mpmath
 libbz2-dev zlib1g-dev python3-minieigen python3-pygraphviz python3-xlib python3-sphinx python3-tk
-python3-ipython python3-matplotlib python3-future python3-pil python3-siconos python3-scipy python3-h5py python3-mpi4py bzip2 curl ca-certificates"
+python3-ipython python3-matplotlib python3-future python3-pil python3-siconos python3-scipy python3-h5py python3-mpi4py python3-distributed bzip2 curl ca-certificates"
 missing=$(for p in $PKGS; do dpkg-query -W -f='${Status}\n' "$p" 2>/dev/null | grep -q 'install ok installed' || echo "$p"; done)
 if [ -n "$missing" ]; then
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO=sudo

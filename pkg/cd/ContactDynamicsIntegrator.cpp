@@ -365,7 +365,7 @@ void ContactDynamicsIntegrator::gatherContacts()
 		c.warmStart        = phys->impulse;
 		if (scene->isPeriodic && I->cellDist != Vector3i::Zero()) {
 			c.shifted = true;
-			c.shift   = scene->cell->intrShiftVel(I->cellDist);
+			c.shift   = imageShiftVelocity(I->cellDist);
 		}
 		set.add(c, mu, phys->status);
 		links.push_back(I);
@@ -401,6 +401,7 @@ void ContactDynamicsIntegrator::startCellStep()
 	beforeJump.clear();
 	if (!scene->isPeriodic) return;
 	Cell& cell = *scene->cell;
+	adoptCellFlip(cell);
 	if (cell.velGradChanged || cell.nextVelGrad != Matrix3r::Zero()) {
 		cell.velGrad        = cell.nextVelGrad;
 		cell.velGradChanged = false;
@@ -434,11 +435,47 @@ void ContactDynamicsIntegrator::startCellStep()
 	}
 }
 
+// A flippable cell (Cell.flipFlippable) is flipped by the scene's prologue right after it moved:
+// hSize becomes (I + hL)·H·F for an integer matrix F (a more compact base of the same lattice;
+// H is the cell at the end of the step before), every interaction's cellDist is re-expressed in
+// the new base, and Cell::postLoad sets prevHSize = hSize and the cache of intrShiftVel to
+// L·hSize. For that step the cell's prevHSize is then one step ahead of the step's start (an
+// image at the start and the middle of the step off by h·L·H·cellDist, the shift velocity by
+// h·L²·H·cellDist). Here a flip is recognised from the cell this engine left at the end of the
+// step before (H⁻¹·hSize rounds to F ≠ I), prevHSize is set to H·F (the step's start, in the new
+// base), and the shift velocity of the step is L·H·F·cellDist with the L that moved the cell.
+void ContactDynamicsIntegrator::adoptCellFlip(Cell& cell)
+{
+	cellFlipped = false;
+	if (!hasPrevCellHSize) return;
+	const Matrix3r G = prevCellHSize.inverse() * cell.hSize; // I + O(hL) without a flip
+	Matrix3r       F;
+	for (int i = 0; i < 3; i++)
+		for (int j = 0; j < 3; j++)
+			F(i, j) = std::round(G(i, j));
+	// a flip is unimodular and leaves only one step's deformation; anything else (the user set
+	// hSize between steps, which YADE's postLoad already made the step's start) is not a flip
+	if (F == Matrix3r::Identity() || math::abs(math::abs(F.determinant()) - 1) > 0.5 || (G - F).cwiseAbs().maxCoeff() > 0.25) return;
+	cell.prevHSize = prevCellHSize * F;
+	cellFlipped    = true;
+}
+
+// The velocity of body 2's periodic image relative to body 2 (Cell.intrShiftVel, but for the
+// step of a flip: adoptCellFlip).
+Vector3r ContactDynamicsIntegrator::imageShiftVelocity(const Vector3i& cellDist) const
+{
+	const Cell& cell = *scene->cell;
+	if (!cellFlipped) return cell.intrShiftVel(cellDist);
+	return prevVelGrad * cell.prevHSize * cellDist.cast<Real>();
+}
+
 // Periodic cells, the end of a step: the velocity gradient of this step becomes the previous one.
 void ContactDynamicsIntegrator::endCellStep()
 {
 	if (!scene->isPeriodic) return;
-	prevCellSize = scene->cell->getSize();
+	prevCellSize     = scene->cell->getSize();
+	prevCellHSize    = scene->cell->hSize;
+	hasPrevCellHSize = true;
 	prevVelGrad = scene->cell->prevVelGrad = scene->cell->velGrad;
 }
 

@@ -93,6 +93,9 @@ private:
 	int                                        cellHomoDeform    = 0;                  // Cell.homoDeform of this step
 	Matrix3r                                   cellDVelGrad      = Matrix3r::Zero();   // velGrad − prevVelGrad
 	Vector3r                                   cellDSpin         = Vector3r::Zero();   // its rotational part
+	bool                                       cellFlipped       = false;              // the prologue flipped the cell this step
+	Matrix3r                                   prevCellHSize     = Matrix3r::Identity(); // the cell at the end of the step before (adoptCellFlip)
+	bool                                       hasPrevCellHSize  = false;
 	std::vector<std::pair<Vector3r, Vector3r>> beforeJump;
 
 	cd::Params params() const;
@@ -104,6 +107,8 @@ private:
 	void       startCellStep();
 	void       endCellStep();
 	Vector3r   imageShift(const Interaction& I, bool midStep) const;
+	void       adoptCellFlip(Cell& cell);
+	Vector3r   imageShiftVelocity(const Vector3i& cellDist) const;
 	void       checkClumpMember(const Body& b, const string& who);
 	void       updateContactFrames();
 	void       computeFreeVelocities();

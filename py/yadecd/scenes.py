@@ -11,7 +11,7 @@ from yade.wrapper import FrictMat, InteractionLoop
 
 from . import engines, integrator
 
-__all__ = ['material', 'sphere_on_plane', 'column', 'tetrahedron', 'binary_collision',
+__all__ = ['material', 'sphere_on_plane', 'dimer', 'dimer_on_plane', 'clump_heap', 'column', 'tetrahedron', 'binary_collision',
            'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing', 'fcc_block', 'cradle', 'set_cd']
 
 
@@ -67,6 +67,37 @@ def dimer_on_plane(theta, mu, along=True, r=0.01, dt=1e-4, spacing=2.2, density=
     O.engines = engines(gravity=(g * math.sin(theta), 0, -g * math.cos(theta)), **opts)
     O.dt = dt
     return {'clump': cid, 'members': ids, 'floor': floor, 'g': g, 'r': r}
+
+
+def clump_heap(n_dimers=8, n_spheres=4, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, spacing=2.2, **opts):
+    """``n_dimers`` :func:`dimer` clumps (random axes) and ``n_spheres`` spheres of radius ``r``,
+    on a grid of cells 1.05·(spacing + 2)·r wide (a dimer in any orientation fits one) above the floor z=0 of a box of side ``box`` (walls
+    x, y = 0, box), dropped from rest: a small heap of clumps and spheres together.
+    Returns ``{'clumps': [...], 'members': [[...], ...], 'spheres': [...]}``."""
+    import random
+    O.reset()
+    rnd = random.Random(seed)
+    mat = material(mu)
+    for ax in (0, 1):
+        O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
+        O.bodies.append(utils.wall(box, axis=ax, sense=-1, material=mat))
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    cell = 1.05 * (spacing + 2) * r
+    per_row = max(1, int(box / cell))
+    sites = [((k % per_row + 0.5) * cell, (k // per_row % per_row + 0.5) * cell, (k // per_row ** 2 + 0.5) * cell)
+             for k in range(n_dimers + n_spheres)]
+    rnd.shuffle(sites)
+    clumps, members, spheres = [], [], []
+    for c in sites[:n_dimers]:
+        axis = (rnd.uniform(-1, 1), rnd.uniform(-1, 1), rnd.uniform(-1, 1))
+        cid, ids = dimer(c, axis, r, spacing, mat)
+        clumps.append(cid)
+        members.append(ids)
+    for c in sites[n_dimers:]:
+        spheres.append(O.bodies.append(utils.sphere(c, r, material=mat)))
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'clumps': clumps, 'members': members, 'spheres': spheres}
 
 
 def column(n, r=0.01, mu=0.3, dt=1e-4, gap=0.0, density=1000.0, **opts):
@@ -192,13 +223,16 @@ def random_loose_packing(n=30, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, **opt
     return {'ids': ids}
 
 
-def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, boxed=False, **opts):
+def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, boxed=False, dimers=False, **opts):
     """A block of about ``n_target`` equal spheres on a face-centred cubic lattice resting on the
     wall z=0, each touching its 12 lattice neighbours (6 contacts per sphere): a dense,
     hyperstatic contact network of any size, built instantly; the benchmark packings. A free
     block is not in equilibrium (its sides spread); ``boxed=True`` adds four walls touching its
-    sides, and the block then rests: the floor carries exactly its weight.
-    Returns ``{'ids': [...]}``."""
+    sides, and the block then rests: the floor carries exactly its weight. ``dimers=True`` makes
+    the same packing of touching pairs: in each lattice cell the spheres of basis sites 0 and 1,
+    and 2 and 3 (2r apart), become one clump (``O.bodies.clump``), so the contacts are the
+    sphere block's but for the pairs' own (the benchmark of clump against sphere contacts).
+    Returns ``{'ids': [...]}`` (and ``'clumps'`` with dimers)."""
     O.reset()
     mat = material(mu)
     O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
@@ -212,13 +246,14 @@ def fcc_block(n_target, r=0.005, mu=0.4, dt=2e-4, boxed=False, **opts):
                 for bx, by, bz in basis:
                     c = (r + a * (i + bx), r + a * (j + by), r + a * (k + bz))
                     ids.append(O.bodies.append(utils.sphere(c, r, material=mat)))
+    clumps = [O.bodies.clump(ids[k:k + 2]) for k in range(0, len(ids), 2)] if dimers else None
     if boxed:  # walls through the outermost sphere surfaces: x, y = 0 and 2r + a(side − 1/2)
         for ax in (0, 1):
             O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
             O.bodies.append(utils.wall(2 * r + a * (side - 0.5), axis=ax, sense=-1, material=mat))
     O.engines = engines(gravity=(0, 0, -9.81), **opts)
     O.dt = dt
-    return {'ids': ids}
+    return {'ids': ids} if clumps is None else {'ids': ids, 'clumps': clumps}
 
 
 def cradle(n=5, r=0.01, v=1.0, gap_ratio=0.1, en=1.0, dt=1e-4, density=1000.0, mu=0.3):

@@ -22,6 +22,9 @@ Measurements (one run, one machine: compare rows of the same run, as ratios):
   and cost against contacts. ``--pile-variants`` picks the variants (large states: plain GS takes
   seconds a step). ``--feed`` keeps creating grains during those steps, as at the end of a deposition.
 - ``CD momentum`` sweep rows: a sweep plus the momentum extrapolation pass.
+- ``CD clumps`` (``--clumps``): the same FCC packing with its spheres paired into touching dimer
+  clumps (``scenes.fcc_block(dimers=True)``): the cost per contact-sweep of clump contacts against
+  the sphere contacts of the rows above, in the same run.
 Each row records machine, threads, commit and date.
 """
 import argparse
@@ -47,6 +50,7 @@ parser.add_argument('--snapshot', nargs='*', default=[], help='pile snapshots .n
 parser.add_argument('--pile-steps', type=int, default=20, help='steps timed on the pile state')
 parser.add_argument('--pile-variants', default='height,plain,general,relaxation,coloured',
                     help='solver variants timed on pile states besides the default: comma-separated subset of height,plain,general,relaxation,coloured')
+parser.add_argument('--clumps', action='store_true', help='also time the same FCC packings made of dimer clumps (clump contacts against sphere contacts)')
 parser.add_argument('--feed', action='store_true',
                     help='on pile states, keep creating grains by the pile protocol (rate, feed disc, creation rule) during the '
                          'warm-up and timed steps, as at the end of a deposition; the same grains for every variant')
@@ -182,6 +186,20 @@ for target in [int(float(x)) for x in args.contacts.split(',') if x]:
     cd.momentum = True  # a sweep plus the momentum extrapolation
     tm = per_sweep(lambda k: solve_time(cd, k))
     record(kind='sweep', scene='fcc_block', bodies=len(O.bodies), contacts=n, method='CD momentum', quantity='time per contact-sweep', value=tm / n * 1e9, unit='ns')
+    if args.clumps:      # the same packing, its spheres paired into touching dimer clumps
+        scenes.fcc_block(target / 6.2, dimers=True, warnUnconverged=False)
+        cl = yadecd.integrator()
+        O.step()
+        nc = cl.nContacts
+        cl.momentum = False
+        tcl = per_sweep(lambda k: solve_time(cl, k))
+        record(kind='sweep', scene='fcc_block dimers', bodies=len(O.bodies), contacts=nc, method='CD clumps',
+               quantity='time per contact-sweep', value=tcl / nc * 1e9, unit='ns')
+        print('  clump/sphere time per contact-sweep: %.2f (fast path), %.2f (general path)' % (tcl / nc / (t / n), tcl / nc / (tg / n)))
+        scenes.fcc_block(target / 6.2, warnUnconverged=False)   # the sphere block again, for what follows
+        cd = yadecd.integrator()
+        O.step()
+        cd.momentum = False
     if not args.no_siconos:
         pb = fclib.local_problem(cd)
         ts = per_sweep(lambda k: siconos_time(pb, k))

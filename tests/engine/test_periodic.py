@@ -13,7 +13,7 @@ import unittest
 
 import numpy as np
 from yade import O, utils, Vector3, Matrix3
-from yade.wrapper import (ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb, NewtonIntegrator)
+from yade.wrapper import (ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb, NewtonIntegrator, PyRunner)
 
 import yadecd
 from yadecd import scenes
@@ -160,6 +160,107 @@ class TestPeriodicBadInput(unittest.TestCase):
         self.assertIn('body #%d' % box, str(cm.exception))
         self.assertIn('periodic', str(cm.exception))
         self.assertEqual(tuple(O.bodies[s].state.pos), (0.05, 0.05, 0.05))
+
+
+def press(a, b, f=5.0):
+    """Opposite forces of ``f`` [N] on ``a`` and ``b`` along the line from ``a`` to the image of
+    ``b`` it touches (the interaction's cellDist)."""
+    i = O.interactions[a, b]
+    d = O.bodies[b].state.pos + O.cell.hSize * Vector3(*i.cellDist) - O.bodies[a].state.pos
+    n = d / d.norm()
+    O.forces.addF(a, f * n)
+    O.forces.addF(b, -f * n)
+
+
+class TestCellFlip(unittest.TestCase):
+    """A flippable cell (Cell.flipFlippable) is re-based by YADE when the shear makes a more compact
+    base possible (at γ = 0.5): hSize changes, every cellDist is re-expressed, and prevHSize is set
+    to the new hSize, one step ahead of the step's start. The lattice is the same, so the motion
+    must be too. In a cell sheared to γ = 0.45 and shearing on (L = γ̇ e_x ⊗ e_z, h·γ̇ = 0.01, so
+    the cell flips at the sixth step), after a first step that gives A the mean field, sphere B is
+    placed so that A touches the image of B through the z boundary
+    along a tilted normal (±45° in the x–z plane), moving with A, the two pressed together by
+    opposite central forces of 5 N (L² = 0: the contact holds them at rest relative to each other). A flip that misplaced the image at the step's middle by h·L·H·cellDist (6e-4 m
+    along x, ±4e-4 m along the normal: what YADE's prevHSize = hSize after a flip gives) opens
+    the loaded contact for a step or closes it deeper (measured with the engine's flip handling
+    switched off: velocities differ by up to 2 m/s). With and without flips, A and B move
+    identically to round-off through the flip, the contact loaded."""
+
+    def run_shear(self, flip, sense, steps=20):
+        O.reset()
+        O.periodic = True
+        O.cell.hSize = Matrix3(0.12, 0, 0.054, 0, 0.12, 0, 0, 0, 0.12)
+        mat = scenes.material(0.5)
+        n = Vector3(sense, 0, 1).normalized()
+        a = O.bodies.append(utils.sphere((0.06, 0.06, 0.1), 0.01, material=mat))
+        import __main__
+        __main__.press = press                 # PyRunner commands run in __main__
+        O.engines = yadecd.engines(gravity=(0, 0, 0), tolerance=1e-14, maxIter=10000,
+                                   extra=[PyRunner(iterPeriod=1, command='press(%d, %d)' % (a, a + 1))])
+        O.dt = 1e-3
+        O.cell.flipFlippable = flip
+        O.cell.velGrad = Matrix3(0, 0, 10.0, 0, 0, 0, 0, 0, 0)
+        O.engines[-2].dead = True
+        O.step()        # the cell takes its velocity gradient and A the mean field; then B, at rest relative to A
+        O.engines[-2].dead = False
+        image = O.bodies[a].state.pos + 0.02 * n
+        b = O.bodies.append(utils.sphere(tuple(image - O.cell.hSize * Vector3(0, 0, 1)), 0.01, material=mat))
+        O.bodies[b].state.vel = O.bodies[a].state.vel - O.cell.velGrad * (O.cell.hSize * Vector3(0, 0, 1))
+        out, cell_dists, loads = [], set(), []
+        for _ in range(steps):
+            O.step()
+            out.append([list(O.bodies[i].state.vel) + list(O.bodies[i].state.pos) + list(O.bodies[i].state.angVel) for i in (a, b)])
+            i = O.interactions[a, b]
+            cell_dists.add(tuple(i.cellDist))
+            loads.append(i.phys.normalForce.norm())
+        return np.array(out), np.array(O.cell.hSize), cell_dists, loads
+
+    def test_flip_changes_nothing(self):
+        for sense in (1, -1):
+            with self.subTest(sense=sense):
+                plain, h_plain, dist_plain, loads = self.run_shear(False, sense)
+                flipped, h_flipped, dist_flipped, _ = self.run_shear(True, sense)
+                self.assertEqual(len(dist_plain), 1)
+                self.assertEqual(len(dist_flipped), 2, 'the cell never flipped: the test would not test it')
+                self.assertGreater(min(loads[:10]), 1.0, 'the contact is not loaded at the flip')
+                np.testing.assert_allclose(h_plain[:, 2] - h_flipped[:, 2], h_plain[:, 0], rtol=0, atol=1e-12)
+                np.testing.assert_allclose(flipped, plain, rtol=0, atol=1e-11)   # round-off of H·F (1e-12 measured)
+
+
+class TestPeriTriaxController(unittest.TestCase):
+    """YADE's PeriTriaxController (dynCell: the cell's strain rate integrates the stress error)
+    drives a periodic gas of 200 frictional spheres to an isotropic stress of −1 kPa under CD: it
+    reports done (its doneHook) within 20 000 steps with each normal stress within its relative
+    tolerance of the goal (utils.getStress reading the CD contacts' forces), the packing jammed
+    (solid fraction 0.55–0.64, every sphere but rattlers in contact) and at rest."""
+
+    def test_isotropic_compression_reaches_the_goal(self):
+        from yade import pack
+        from yade.wrapper import PeriTriaxController
+        O.reset()
+        O.periodic = True
+        O.cell.setBox(0.1, 0.1, 0.1)
+        sp = pack.SpherePack()
+        sp.makeCloud((0, 0, 0), (0.1, 0.1, 0.1), rMean=0.006, rRelFuzz=0.2, num=200, periodic=True, seed=2)
+        mat = scenes.material(0.5, 2500.0)
+        for c, r in sp:
+            O.bodies.append(utils.sphere(c, r, material=mat))
+        goal = -1e3
+        ctrl = PeriTriaxController(goal=(goal, goal, goal), stressMask=7, dynCell=True, mass=2.0, maxUnbalanced=1e-3,
+                                   relStressTol=1e-2, absStressTol=1e9, maxStrainRate=(5, 5, 5), doneHook='O.pause()',
+                                   label='ctrl')
+        O.engines = yadecd.engines(gravity=(0, 0, 0), extra=[ctrl], tolerance=1e-6, maxIter=20000)
+        O.dt = 2e-4
+        O.run(20000, True)
+        self.assertLess(O.iter, 20000, 'the controller never reported its goal reached')
+        s = utils.getStress()
+        for k in range(3):
+            self.assertLess(abs(s[k, k] - goal), 1e-2 * abs(goal) + 1e-9, 'σ_%d%d = %g' % (k, k, s[k, k]))
+        phi = sum(4 / 3 * math.pi * b.shape.radius ** 3 for b in O.bodies) / O.cell.hSize.determinant()
+        self.assertGreater(phi, 0.55)
+        self.assertLess(phi, 0.64)
+        self.assertLess(utils.unbalancedForce(), 1e-3)
+
 
 if __name__ == '__main__':
     unittest.main()

@@ -171,6 +171,57 @@ def mean_interval(values):
     return {'n': int(len(v)), 'mean': m, 'std': sd, 'sem': se, 'ci95': (m - q * se, m + q * se)}
 
 
+def batch_means(series, n_batches=10):
+    """Mean of a correlated stationary time series (a steady shear's stress samples) with its
+    standard error by non-overlapping batch means: the series is cut into ``n_batches`` equal
+    consecutive batches (the first len % n_batches samples dropped), whose means are treated as
+    independent (valid once a batch is much longer than the correlation time). Also the drift
+    check: the difference of the second and first halves' means in units of its standard error
+    (|z| > 3 says the series is not yet steady). Returns a dict: n (samples used), mean, sem,
+    ci95 (Student t with n_batches − 1 degrees of freedom), batches, drift_z; nan entries with
+    fewer than two samples per batch."""
+    x = np.asarray([v for v in series if v is not None and math.isfinite(v)], dtype=float)
+    nan = float('nan')
+    k = int(n_batches)
+    if k < 2:
+        raise ValueError('batch_means needs n_batches >= 2, not %r' % (n_batches,))
+    size = len(x) // k
+    if size < 2:
+        return {'n': int(len(x)), 'mean': float(x.mean()) if len(x) else nan, 'sem': nan, 'ci95': (nan, nan),
+                'batches': k, 'drift_z': nan}
+    x = x[len(x) - k * size:]
+    return _batch_summary(x.reshape(k, size).mean(axis=1), len(x))
+
+
+def _batch_summary(means, n):
+    """Mean, standard error, 95 % interval and drift z of independent batch values ``means``."""
+    k = len(means)
+    m = float(means.mean())
+    se = float(means.std(ddof=1) / math.sqrt(k))
+    q = t_quantile_975(k - 1)
+    h = k // 2
+    first, second = means[:h], means[h:2 * h]
+    se_d = math.sqrt(first.var(ddof=1) / h + second.var(ddof=1) / h) if h >= 2 else float('nan')
+    drift = float((second.mean() - first.mean()) / se_d) if se_d and math.isfinite(se_d) and se_d > 0 else float('nan')
+    return {'n': int(n), 'mean': m, 'sem': se, 'ci95': (m - q * se, m + q * se), 'batches': k, 'drift_z': drift}
+
+
+def batch_ratio(num, den, n_batches=10):
+    """The ratio of the means of two paired stationary series (μ = τ/p from stress samples whose
+    denominator fluctuates), with its error by batch means: the ratio of each batch's means, then
+    their mean, standard error and interval as :func:`batch_means` gives them (so the error
+    carries the correlation of numerator and denominator). Unlike the mean of the per-sample
+    ratios, it is not biased by a fluctuating denominator. Returns the same dict as
+    :func:`batch_means` (``n``: samples used)."""
+    pairs = [(a, b) for a, b in zip(num, den) if a is not None and b is not None and math.isfinite(a) and math.isfinite(b)]
+    k = int(n_batches)
+    size = len(pairs) // max(k, 1)
+    if k < 2 or size < 1:
+        return batch_means([a / b for a, b in pairs if b != 0], max(k, 2))
+    means = np.array(pairs[len(pairs) - k * size:], dtype=float).reshape(k, size, 2).mean(axis=1)
+    return _batch_summary(means[:, 0] / means[:, 1], k * size)
+
+
 def jackknife_ratio_dip(num, den, w_num=1.0, w_den=1.0):
     """D = 1 - (w_num·sum num)/(w_den·sum den) over groups (sectors or piles), with its
     delete-one jackknife standard error, the 95 % Student-t interval (groups - 1 degrees of

@@ -1,8 +1,10 @@
-"""Ensembles of sand piles: many runs of ``scripts/pile.py`` (sizes x seeds), driven as
-subprocesses, resumable, with a status file that records every run's fate.
+"""Ensembles of sand piles: many runs of ``scripts/pile.py`` (sizes x seeds), run as tasks of
+Dask's distributed engine (a local cluster by default, or any Dask cluster given its scheduler's
+address), resumable, with a status file that records every run's fate.
 
-Pure Python (no YADE, no numpy): the driver runs under Debian's ``/usr/bin/python3`` and starts
-one YADE process per pile through ``scripts/yade``. Used by ``scripts/pile_ensemble.py``.
+No YADE, no numpy: the driver runs under Debian's ``/usr/bin/python3`` (with its
+``python3-distributed``) and each task starts one YADE process per pile through
+``scripts/yade``. Used by ``scripts/pile_ensemble.py``.
 
 Layout of an ensemble directory::
 
@@ -148,12 +150,60 @@ def option_value(options, flag, default):
     return default
 
 
-def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_failed=False, poll=2.0):
-    """Run every pending run of the ensemble in ``root`` with at most ``jobs`` at a time.
+def run_pile(repo, run_dir, rec, plan):
+    """Run one pile to its end in a YADE process of its own (on a Dask worker, or anywhere) and
+    report: ``{'returncode', 'done', 'wall_s', 'resumed', 'error'}``.
+
+    A run that has a ``run.json`` resumes from its checkpoint. The run directory's lock file
+    (``.lock``, ``flock``) is taken before YADE starts and held by the YADE process itself (it
+    inherits the descriptor), so that a retry of this task can never run beside a YADE process
+    left by a dead worker: it waits until that one has stopped. YADE is started with a parent-death
+    signal (``setpriv --pdeathsig TERM``): if the worker dies, YADE gets SIGTERM, which makes the
+    pile write a checkpoint and stop, and the retry resumes from it."""
+    import fcntl
+    import shutil
+    os.makedirs(run_dir, exist_ok=True)
+    with open(os.path.join(run_dir, '.lock'), 'a') as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        resume = os.path.exists(os.path.join(run_dir, 'run.json'))
+        cmd = run_command(repo, run_dir, rec, plan, resume)
+        if shutil.which('setpriv'):
+            cmd = ['setpriv', '--pdeathsig', 'TERM', '--'] + cmd
+        start = time.time()
+        with open(os.path.join(run_dir, 'log.txt'), 'a') as logf:
+            logf.write('\n=== %s %s\n' % (time.strftime('%Y-%m-%d %H:%M:%S'), 'resume' if resume else 'start'))
+            logf.flush()
+            rc = subprocess.run(cmd, stdout=logf, stderr=subprocess.STDOUT, cwd=repo, pass_fds=(lock.fileno(),)).returncode
+    done = rc == 0 and is_done(run_dir)
+    return {'returncode': rc, 'done': done, 'wall_s': time.time() - start, 'resumed': resume,
+            'error': '' if done else _tail(os.path.join(run_dir, 'log.txt'))}
+
+
+def _client(jobs, scheduler):
+    """A Dask client: of the scheduler at ``scheduler`` (an address: the ensemble spreads over its
+    workers), or of a local cluster of ``jobs`` single-threaded worker processes."""
+    from dask.distributed import Client, LocalCluster
+    if scheduler:
+        return Client(scheduler), None
+    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=40)
+    return Client(cluster), cluster
+
+
+def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_failed=False, scheduler=None):
+    """Run every pending run of the ensemble in ``root`` on Dask (distributed): a local cluster of
+    ``jobs`` single-threaded workers, or the cluster whose scheduler is at ``scheduler`` (its
+    workers must see ``root`` and ``repo`` at the same paths and import yadecd: start them with
+    ``PYTHONPATH=<repo>/py dask-worker <address> --nthreads 1``). One task per pile
+    (:func:`run_pile`), one YADE process per task.
 
     Done runs are skipped; runs with a checkpoint resume; failed runs are retried only with
-    ``retry_failed``. Returns the status dict of every run. SIGINT/SIGTERM stop the children
-    (they resume from their last checkpoint next time) and leave the status file consistent."""
+    ``retry_failed``. A worker that dies mid-pile makes its pile checkpoint and stop, and Dask runs
+    the task again on another worker, which resumes it (after three worker deaths on one pile the
+    run is recorded as failed). Returns the status dict of every run. SIGINT/SIGTERM stop the
+    driver, whose local workers stop their piles at a checkpoint (they resume next time); the
+    status file stays consistent."""
+    from dask.distributed import as_completed
     ens = Ensemble(root)
     runs = ens.runs()
     todo = []
@@ -167,68 +217,62 @@ def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_faile
             rec['state'] = 'pending'
             todo.append(name)
     ens.save()
+    if not todo:
+        return runs
     key = (lambda k: (runs[k]['n_grains'], runs[k]['seed'])) if order == 'small-first' else \
         (lambda k: (-runs[k]['n_grains'], runs[k]['seed']))
     todo.sort(key=key)
-    active = {}
     stop = {'flag': False}
 
     def _stop(signum, frame):
         stop['flag'] = True
+        raise KeyboardInterrupt
 
     old_handlers = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    client = cluster = None
     try:
-        while (todo or active) and not stop['flag']:
-            while todo and len(active) < jobs and not stop['flag']:
-                name = todo.pop(0)
-                rec = runs[name]
-                run_dir = os.path.join(ens.root, name)
-                os.makedirs(run_dir, exist_ok=True)
-                # a started run resumes (from its checkpoint, or again from its run.json)
-                resume = os.path.exists(os.path.join(run_dir, 'run.json'))
-                logf = open(os.path.join(run_dir, 'log.txt'), 'a')
-                logf.write('\n=== %s %s\n' % (time.strftime('%Y-%m-%d %H:%M:%S'), 'resume' if resume else 'start'))
-                logf.flush()
-                proc = subprocess.Popen(run_command(repo, run_dir, rec, ens.data['plan'], resume), stdout=logf,
-                                        stderr=subprocess.STDOUT, cwd=repo, start_new_session=True)
-                rec.update(state='running', attempts=rec.get('attempts', 0) + 1, started=time.time())
-                active[name] = (proc, logf)
-                ens.save()
-                log('ensemble: %s %s (%d running, %d waiting)' % ('resumed' if resume else 'started', name,
-                                                                  len(active), len(todo)))
-            time.sleep(poll)
-            for name in list(active):
-                proc, logf = active[name]
-                rc = proc.poll()
-                if rc is None:
-                    continue
-                logf.close()
-                del active[name]
-                rec = runs[name]
-                run_dir = os.path.join(ens.root, name)
-                rec['returncode'] = rc
-                rec['wall_s'] = time.time() - rec.pop('started', time.time())
-                if rc == 0 and is_done(run_dir):
-                    rec['state'] = 'done'
-                    rec.pop('error', None)
-                else:
-                    rec['state'] = 'failed'
-                    rec['error'] = _tail(os.path.join(run_dir, 'log.txt'))
-                ens.save()
-                log('ensemble: %s %s (exit %d, %.0f s)' % (name, rec['state'], rc, rec['wall_s']))
-    finally:
-        for name, (proc, logf) in active.items():
+        client, cluster = _client(jobs, scheduler)
+        futures = {}
+        for k, name in enumerate(todo):
+            rec = runs[name]
+            fut = client.submit(run_pile, repo, os.path.join(ens.root, name), dict(rec), ens.data['plan'],
+                                key='pile-%s-%d' % (name, rec.get('attempts', 0)), pure=False, priority=len(todo) - k)
+            futures[fut] = name
+            rec.update(state='submitted', attempts=rec.get('attempts', 0) + 1)
+        ens.save()
+        log('ensemble: %d pile(s) submitted to %s' % (len(todo), scheduler or 'a local cluster of %d worker(s)' % jobs))
+        for fut in as_completed(list(futures)):
+            name = futures[fut]
+            rec = runs[name]
             try:
-                os.killpg(proc.pid, signal.SIGTERM)
-                proc.wait(timeout=30)
-            except (OSError, subprocess.TimeoutExpired):
-                os.killpg(proc.pid, signal.SIGKILL)
-            logf.close()
-            runs[name]['state'] = 'pending'
-            runs[name].pop('started', None)
+                res = fut.result()
+            except Exception as e:      # the task itself failed (KilledWorker after repeated deaths...)
+                res = {'returncode': None, 'done': False, 'wall_s': None, 'resumed': None,
+                       'error': '%s: %s' % (type(e).__name__, e)}
+            rec['returncode'] = res['returncode']
+            rec['wall_s'] = res['wall_s']
+            if res['done']:
+                rec['state'] = 'done'
+                rec.pop('error', None)
+            else:
+                rec['state'] = 'failed'
+                rec['error'] = res['error']
+            ens.save()
+            log('ensemble: %s %s (exit %s, %s)' % (name, rec['state'], res['returncode'],
+                                                   '%.0f s' % res['wall_s'] if res['wall_s'] is not None else 'no time'))
+    except KeyboardInterrupt:
+        log('ensemble: stopped; interrupted piles resume from their checkpoints next time')
+    finally:
+        for name in todo:
+            if runs[name]['state'] == 'submitted':
+                runs[name]['state'] = 'pending'
         ens.save()
         for s, h in old_handlers.items():
             signal.signal(s, h)
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
     return runs
 
 

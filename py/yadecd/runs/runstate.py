@@ -8,16 +8,19 @@ the *physical* state instead, as plain arrays that any later plugin version can 
 array                  shape       meaning (SI)
 =====================  ==========  =============================================================
 ``format``             ()          ``'yadecd-runstate'``
-``format_version``     ()          1 (readers refuse newer versions with a clear message)
+``format_version``     ()          2 (readers refuse newer versions with a clear message; version 1,
+                                   before clumps, has no ``clump_id`` and still loads)
 ``plugin_digest``      ()          SHA-256 of the plugin library that wrote the file
 ``yade_version``       ()          YADE's version string
 ``time``, ``iter``     ()          simulated time [s] and step count of the run (offsets included)
 ``dt``                 ()          time step [s]
-``body_id``            (n,)        body ids, ascending; ``body_kind``: 0 wall, 1 sphere
+``body_id``            (n,)        body ids, ascending; ``body_kind``: 0 wall, 1 sphere, 2 clump
+``clump_id``           (n,)        the clump a sphere belongs to (-1: none; a clump's own row: -1)
 ``pos``, ``vel``       (n, 3)      centre [m], velocity [m/s]
 ``ori``                (n, 4)      orientation quaternion (w, x, y, z)
 ``angVel``             (n, 3)      angular velocity [rad/s]
-``radius``             (n,)        sphere radius [m] (0 for walls)
+``radius``             (n,)        sphere radius [m] (0 for walls and clumps)
+``mass``               (n,)        mass [kg] (a clump's: its members' sum, as YADE computed it)
 ``fixed``              (n,)        True for bodies that do not move
 ``wall_axis``          (n,)        wall normal axis (0, 1, 2; -1 for spheres); ``wall_sense``
 ``c_id1``, ``c_id2``   (m,)        bodies of each CD contact, in the order of ``O.interactions``
@@ -29,7 +32,9 @@ array                  shape       meaning (SI)
 =====================  ==========  =============================================================
 
 :func:`restore_bodies` and :func:`restore_contacts` put a saved state back into a scene whose
-bodies were created again (same ids, kinds and radii) by the code that builds a new run. The
+bodies were created again (same ids, kinds, radii and clump memberships) by the code that builds
+a new run. A clump's row holds its own state (centre of mass, principal orientation); its members'
+rows hold theirs, so a restored clump and its members agree exactly as saved. The
 continuation is the same physical state: positions, velocities and warm-start impulses are
 exact; it is not bit-identical to an uninterrupted run (the collider and the contact order start
 afresh), which the fast path (``O.load`` of YADE's archive, when the plugin is the same) is.
@@ -40,10 +45,10 @@ import os
 import numpy as np
 
 from yade import O, Quaternion, Vector3
-from yade.wrapper import Sphere, Wall, CDPhys
+from yade.wrapper import Clump, Sphere, Wall, CDPhys
 
 FORMAT = 'yadecd-runstate'
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 PLUGIN = 'libpkg_contactdynamics.so'
 
 
@@ -95,10 +100,7 @@ def capture(path, time, iteration, extra=None):
     O.iter after a rebuild); ``extra`` maps names to arrays stored as ``x_<name>``."""
     bodies = [b for b in O.bodies if b is not None]
     n = len(bodies)
-    kind = np.array([0 if isinstance(b.shape, Wall) else 1 for b in bodies], dtype=np.int8)
-    for b in bodies:
-        if not isinstance(b.shape, (Wall, Sphere)):
-            raise RunStateError('body %d is a %s: run states hold walls and spheres only' % (b.id, type(b.shape).__name__))
+    kind = np.array([body_kind(b) for b in bodies], dtype=np.int8)
     arrays = dict(
         format=np.array(FORMAT), format_version=np.array(FORMAT_VERSION), plugin_digest=np.array(plugin_digest()),
         yade_version=np.array(yade_version()), time=np.array(float(time)), iter=np.array(int(iteration)),
@@ -109,6 +111,8 @@ def capture(path, time, iteration, extra=None):
         ori=np.array([(q[3], q[0], q[1], q[2]) for q in (b.state.ori for b in bodies)], dtype=float).reshape(n, 4),
         angVel=np.array([tuple(b.state.angVel) for b in bodies], dtype=float).reshape(n, 3),
         radius=np.array([b.shape.radius if isinstance(b.shape, Sphere) else 0.0 for b in bodies]),
+        clump_id=np.array([b.clumpId if b.isClumpMember else -1 for b in bodies], dtype=np.int64),
+        mass=np.array([b.state.mass for b in bodies], dtype=float),
         fixed=np.array([not b.dynamic for b in bodies], dtype=bool),
         wall_axis=np.array([b.shape.axis if isinstance(b.shape, Wall) else -1 for b in bodies], dtype=np.int8),
         wall_sense=np.array([b.shape.sense if isinstance(b.shape, Wall) else 0 for b in bodies], dtype=np.int8),
@@ -137,6 +141,20 @@ def capture(path, time, iteration, extra=None):
     os.replace(tmp, path)
 
 
+KINDS = {Wall: 0, Sphere: 1, Clump: 2}
+
+
+def body_kind(b):
+    """The run-state code of a body's shape (0 wall, 1 sphere, 2 clump).
+
+    :raises RunStateError: for any other shape, naming the body."""
+    for cls, code in KINDS.items():
+        if isinstance(b.shape, cls):
+            return code
+    raise RunStateError('body %d is a %s: run states hold walls, spheres and clumps of spheres only'
+                        % (b.id, type(b.shape).__name__))
+
+
 def read(path):
     """The arrays of a run-state file as a dict, after checking its format and version.
 
@@ -152,6 +170,8 @@ def read(path):
     if version > FORMAT_VERSION:
         raise RunStateError('%s has run-state format %d; this plugin reads up to %d: update the plugin'
                             % (path, version, FORMAT_VERSION))
+    if version < 2:     # format 1 (before clumps): no sphere belongs to a clump
+        data['clump_id'] = np.full(len(data['body_id']), -1, dtype=np.int64)
     return data
 
 
@@ -165,22 +185,15 @@ def extra(data, name):
 
 def restore_bodies(data):
     """Set position, orientation, velocity and angular velocity of every body of the scene from a
-    run state. The scene must hold the same bodies (ids, kinds, radii, fixed flags): anything else
-    raises :class:`RunStateError` naming the first difference, before any body is changed."""
+    run state. The scene must hold the same bodies (ids, kinds, radii, clumps and their masses, fixed
+    flags; :func:`check_body`): anything else raises :class:`RunStateError` naming the first difference, before any body is changed."""
     ids = data['body_id']
     present = [b.id for b in O.bodies if b is not None]
     if present != ids.tolist():
         raise RunStateError('the rebuilt scene has bodies %s…, the run state %s… (%d vs %d bodies)'
                             % (present[:5], ids[:5].tolist(), len(present), len(ids)))
     for k, bid in enumerate(ids.tolist()):
-        b = O.bodies[bid]
-        is_wall = isinstance(b.shape, Wall)
-        if is_wall != (data['body_kind'][k] == 0):
-            raise RunStateError('body %d is a %s in the scene but not in the run state' % (bid, type(b.shape).__name__))
-        if not is_wall and b.shape.radius != data['radius'][k]:
-            raise RunStateError('body %d has radius %r in the scene, %r in the run state' % (bid, b.shape.radius, data['radius'][k]))
-        if (not b.dynamic) != bool(data['fixed'][k]):
-            raise RunStateError('body %d is %s in the scene but not in the run state' % (bid, 'fixed' if not b.dynamic else 'free'))
+        check_body(O.bodies[bid], data, k)
     for k, bid in enumerate(ids.tolist()):
         s = O.bodies[bid].state
         s.pos = Vector3(*data['pos'][k])
@@ -189,6 +202,25 @@ def restore_bodies(data):
         s.vel = Vector3(*data['vel'][k])
         s.angVel = Vector3(*data['angVel'][k])
         s.refPos = s.pos
+
+
+def check_body(b, data, k):
+    """Raise :class:`RunStateError` naming body ``b`` if it differs from row ``k`` of a run state in
+    kind, radius, clump membership or fixity (what the rebuilt scene must share with the saved one)."""
+    names = {0: 'wall', 1: 'sphere', 2: 'clump'}
+    kind, saved = body_kind(b), int(data['body_kind'][k])
+    if kind != saved:
+        raise RunStateError('body %d is a %s in the scene, a %s in the run state' % (b.id, names[kind], names.get(saved, saved)))
+    if kind == 1 and b.shape.radius != data['radius'][k]:
+        raise RunStateError('body %d has radius %r in the scene, %r in the run state' % (b.id, b.shape.radius, data['radius'][k]))
+    clump = b.clumpId if b.isClumpMember else -1
+    if clump != int(data['clump_id'][k]):
+        raise RunStateError('body %d belongs to clump %d in the scene, to %d in the run state (-1: none)'
+                            % (b.id, clump, int(data['clump_id'][k])))
+    if kind == 2 and abs(b.state.mass - data['mass'][k]) > 1e-12 * abs(data['mass'][k]):
+        raise RunStateError('clump %d has mass %r in the scene, %r in the run state' % (b.id, b.state.mass, data['mass'][k]))
+    if (not b.dynamic) != bool(data['fixed'][k]):
+        raise RunStateError('body %d is %s in the scene but not in the run state' % (b.id, 'fixed' if not b.dynamic else 'free'))
 
 
 def restore_contacts(data):

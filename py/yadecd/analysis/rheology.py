@@ -1,0 +1,128 @@
+"""The μ(I) and φ(I) rheology from the steady states of periodic shear runs
+(:mod:`yadecd.compare.shear`, ``scripts/shear_rheology.py``): records, the linear laws
+μ = μ_s + b·I and φ = φ_c − a·I fitted with the runs' error bars, the table and the figure.
+Pure numpy and matplotlib (no YADE).
+
+Published values drawn beside the runs (:data:`LITERATURE`) are labelled with their source and
+their system; they are not the same system as ours unless said.
+"""
+import glob
+import json
+import math
+import os
+
+import numpy as np
+
+__all__ = ['LITERATURE', 'load_records', 'weighted_line', 'fit_laws', 'table_markdown', 'figure']
+
+#: published μ(I) laws drawn for reference: name → (μ_s, μ_2, I_0, source, system)
+LITERATURE = {
+    'jop2006': (math.tan(math.radians(20.9)), math.tan(math.radians(32.76)), 0.279,
+                'Jop, Forterre & Pouliquen, Nature 441, 727 (2006)', 'glass beads, experiments (inclined planes)'),
+}
+
+
+def mu_of_I(I, mu_s, mu_2, I0):
+    """The μ(I) law of Jop et al. (2006): μ_s + (μ_2 − μ_s)/(1 + I_0/I)."""
+    I = np.asarray(I, dtype=float)
+    return mu_s + (mu_2 - mu_s) / (1.0 + I0 / I)
+
+
+def load_records(directory):
+    """The run records (``<method>_I<I>_n<N>_s<seed>.json``) of a shear directory, as a list of
+    dicts with method, I (measured mean), its error, mu, phi and their errors, sorted by method
+    and I."""
+    out = []
+    for path in sorted(glob.glob(os.path.join(directory, '*_I*_n*_s*.json'))):
+        with open(path) as f:
+            r = json.load(f)
+        s = r['summary']
+        out.append(dict(method=r['method'], I_set=r['I'], I=s['I']['mean'], I_err=s['I']['sem'],
+                        mu=s['mu']['mean'], mu_err=s['mu']['sem'], mu_drift=s['mu']['drift_z'],
+                        phi=s['phi']['mean'], phi_err=s['phi']['sem'], phi_drift=s['phi']['drift_z'],
+                        kinetic_share=s['kinetic_share']['mean'], sweeps=s.get('sweeps'), n=r['n'],
+                        steps=r['steps'], wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path))
+    return sorted(out, key=lambda r: (r['method'], r['I']))
+
+
+def weighted_line(x, y, err):
+    """Least-squares line y = a + b·x weighted by 1/err²: (a, b, σ_a, σ_b, χ²/dof). The
+    parameter errors are scaled by sqrt(χ²/dof) when the scatter exceeds the error bars (> 1),
+    so that bars too small for the data do not make the fit look sharper than it is. Needs
+    three points with finite positive errors; otherwise nan everywhere."""
+    x, y, err = (np.asarray(v, dtype=float) for v in (x, y, err))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(err) & (err > 0)
+    x, y, err = x[ok], y[ok], err[ok]
+    nan = float('nan')
+    if len(x) < 3:
+        return nan, nan, nan, nan, nan
+    w = 1.0 / err ** 2
+    A = np.array([[w.sum(), (w * x).sum()], [(w * x).sum(), (w * x * x).sum()]])
+    rhs = np.array([(w * y).sum(), (w * x * y).sum()])
+    cov = np.linalg.inv(A)
+    a, b = cov @ rhs
+    chi2 = float((w * (y - a - b * x) ** 2).sum() / (len(x) - 2))
+    scale = max(1.0, chi2)
+    return float(a), float(b), float(math.sqrt(cov[0, 0] * scale)), float(math.sqrt(cov[1, 1] * scale)), chi2
+
+
+def fit_laws(records, method, I_max=0.1):
+    """μ = μ_s + b·I and φ = φ_c − a·I fitted to the runs of ``method`` with I ≤ ``I_max``.
+    Returns a dict {mu_s, mu_s_err, b, b_err, phi_c, phi_c_err, a, a_err, chi2_mu, chi2_phi, points}."""
+    rs = [r for r in records if r['method'] == method and r['I'] <= I_max]
+    I = [r['I'] for r in rs]
+    mu_s, b, mu_s_e, b_e, chi_mu = weighted_line(I, [r['mu'] for r in rs], [r['mu_err'] for r in rs])
+    phi_c, slope, phi_c_e, slope_e, chi_phi = weighted_line(I, [r['phi'] for r in rs], [r['phi_err'] for r in rs])
+    return dict(mu_s=mu_s, mu_s_err=mu_s_e, b=b, b_err=b_e, phi_c=phi_c, phi_c_err=phi_c_e, a=-slope, a_err=slope_e,
+                chi2_mu=chi_mu, chi2_phi=chi_phi, points=len(rs))
+
+
+def table_markdown(records):
+    """One row per run: method, I, μ, φ with their batch-means errors, the kinetic share of
+    σ_zz, steps, wall time."""
+    lines = ['| method | I (measured) | μ = τ/p | φ | kinetic share of σ_zz | steps | time step / t_i | sweeps per step | wall [s] |',
+             '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
+    for r in records:
+        lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.2g | %d | %s | %s | %.0f |' % (
+            r['method'].upper(), r['I'], r['I_err'], r['mu'], r['mu_err'], r['phi'], r['phi_err'], r['kinetic_share'],
+            r['steps'], '%.3g' % (r['dt'] / r['ti']),
+            '%.0f' % r['sweeps'] if r['method'] == 'cd' and r['sweeps'] is not None else '–', r['wall_s']))
+    return '\n'.join(lines) + '\n'
+
+
+def figure(records, path, fits=None):
+    """μ(I) and φ(I) of every method with error bars (95 %: 2.26 batch-means standard errors),
+    the fitted lines, and the published law of :data:`LITERATURE`; log I axis."""
+    from .figures import new_figure, save_figure
+    fig = new_figure(9.0, 3.6)
+    ax_mu, ax_phi = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    style = {'cd': ('o', 'C0', 'CD (this plugin)'), 'md': ('s', 'C3', "YADE's MD (Hertz–Mindlin)")}
+    allI = [r['I'] for r in records if r['I'] > 0]
+    if not allI:
+        ax_mu.text(0.5, 0.5, 'no runs', transform=ax_mu.transAxes, ha='center')
+        return save_figure(fig, path)
+    grid = np.logspace(math.log10(min(allI)) - 0.2, math.log10(max(allI)) + 0.2, 100)
+    for method, (marker, colour, label) in style.items():
+        rs = [r for r in records if r['method'] == method]
+        if not rs:
+            continue
+        I = np.array([r['I'] for r in rs])
+        ax_mu.errorbar(I, [r['mu'] for r in rs], yerr=[2.26 * r['mu_err'] for r in rs], fmt=marker, color=colour,
+                       label=label, capsize=2, ms=4)
+        ax_phi.errorbar(I, [r['phi'] for r in rs], yerr=[2.26 * r['phi_err'] for r in rs], fmt=marker, color=colour,
+                        label=label, capsize=2, ms=4)
+        f = (fits or {}).get(method)
+        if f and math.isfinite(f['mu_s']):
+            ax_mu.plot(grid, f['mu_s'] + f['b'] * grid, '-', color=colour, lw=0.8)
+            ax_phi.plot(grid, f['phi_c'] - f['a'] * grid, '-', color=colour, lw=0.8)
+    for name, (mu_s, mu_2, I0, source, system) in LITERATURE.items():
+        ax_mu.plot(grid, mu_of_I(grid, mu_s, mu_2, I0), 'k--', lw=0.8, label='%s (%s)' % (source.split(',')[0] + ' 2006', system.split(',')[0]))
+    for ax, name in ((ax_mu, 'μ = τ / p'), (ax_phi, 'solid fraction φ')):
+        ax.set_xscale('log')
+        ax.set_xlabel('inertial number I')
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+    ax_mu.legend(fontsize=7, loc='upper left')
+    ax_phi.legend(fontsize=7, loc='lower left')
+    fig.suptitle('Periodic simple shear at controlled pressure, frictional spheres (μ_p = 0.5); bars: 95 % batch means', fontsize=9)
+    return save_figure(fig, path)

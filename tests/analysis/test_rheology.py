@@ -1,0 +1,89 @@
+"""The rheology fits (yadecd.analysis.rheology) on constructed runs with known laws: exact
+points give the law back exactly; noisy points with honest error bars give it within two of
+the fit's own errors; an outlier with a tiny error bar inflates χ² and the errors instead of
+pinning the fit; fewer than three points give no fit; the records of a directory are read."""
+import json
+import math
+import os
+import shutil
+import tempfile
+import unittest
+
+import numpy as np
+
+from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
+from yadecd.analysis import rheology
+
+
+def record(method, I, mu, phi, mu_err=0.002, phi_err=0.001):
+    return dict(method=method, I=I, I_err=0.0, mu=mu, mu_err=mu_err, phi=phi, phi_err=phi_err)
+
+
+class TestFits(unittest.TestCase):
+
+    def test_exact_law(self):
+        I = [0.003, 0.01, 0.03, 0.1]
+        rs = [record('cd', i, 0.38 + 0.9 * i, 0.59 - 0.35 * i) for i in I]
+        f = rheology.fit_laws(rs, 'cd')
+        for key, want in (('mu_s', 0.38), ('b', 0.9), ('phi_c', 0.59), ('a', 0.35)):
+            self.assertAlmostEqual(f[key], want, delta=1e-12)
+        self.assertEqual(f['points'], 4)
+        self.assertLess(f['chi2_mu'], 1e-20)
+
+    def test_noisy_law_within_its_errors(self):
+        rng = np.random.default_rng(4)
+        I = np.array([0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1])
+        hits = 0
+        for _ in range(200):
+            rs = [record('md', i, 0.38 + 0.9 * i + rng.normal(0, 0.004), 0.59 - 0.35 * i + rng.normal(0, 0.002), 0.004, 0.002)
+                  for i in I]
+            f = rheology.fit_laws(rs, 'md')
+            hits += abs(f['mu_s'] - 0.38) < 2 * f['mu_s_err'] and abs(f['a'] - 0.35) < 2 * f['a_err']
+        self.assertGreater(hits / 200, 0.85)        # two 95 % intervals jointly: about 0.9
+
+    def test_outlier_inflates_the_errors(self):
+        I = [0.003, 0.01, 0.03, 0.1]
+        clean = [record('cd', i, 0.38 + 0.9 * i, 0.59) for i in I]
+        bad = [dict(r) for r in clean]
+        bad[1]['mu'] += 0.05                       # 25 error bars off
+        f = rheology.fit_laws(bad, 'cd')
+        self.assertGreater(f['chi2_mu'], 100)
+        self.assertGreater(f['mu_s_err'], 10 * rheology.fit_laws([dict(r, mu=r['mu'] + 1e-4 * k) for k, r in enumerate(clean)], 'cd')['mu_s_err'])
+
+    def test_too_few_points_and_other_methods(self):
+        rs = [record('cd', 0.01, 0.39, 0.58), record('cd', 0.1, 0.45, 0.55), record('md', 0.03, 0.4, 0.57)]
+        f = rheology.fit_laws(rs, 'cd')
+        self.assertTrue(math.isnan(f['mu_s']))
+        self.assertEqual(f['points'], 2)
+
+    def test_literature_law(self):
+        mu_s, mu_2, I0 = rheology.LITERATURE['jop2006'][:3]
+        self.assertAlmostEqual(float(rheology.mu_of_I(I0, mu_s, mu_2, I0)), 0.5 * (mu_s + mu_2), delta=1e-15)
+        self.assertAlmostEqual(float(rheology.mu_of_I(1e-9, mu_s, mu_2, I0)), mu_s, delta=1e-8)
+
+
+class TestRecords(unittest.TestCase):
+
+    def test_load_and_table(self):
+        tmp = tempfile.mkdtemp(prefix='cd-rheology-')
+        try:
+            for method, I in (('cd', 0.01), ('md', 0.01), ('cd', 0.1)):
+                bm = lambda m, e: dict(mean=m, sem=e, drift_z=0.1)   # noqa: E731
+                rec = dict(method=method, I=I, n=2000, steps=1000, wall_s=10.0, dt=1e-5, ti=1e-3,
+                           summary=dict(samples=200, I=bm(I, 1e-4), mu=bm(0.4, 0.003), phi=bm(0.58, 0.001),
+                                        kinetic_share=bm(0.01, 0.001), sweeps=50.0))
+                with open(os.path.join(tmp, '%s_I%g_n2000_s1.json' % (method, I)), 'w') as f:
+                    json.dump(rec, f)
+            rs = rheology.load_records(tmp)
+            self.assertEqual([(r['method'], r['I']) for r in rs], [('cd', 0.01), ('cd', 0.1), ('md', 0.01)])
+            text = rheology.table_markdown(rs)
+            self.assertEqual(len(text.strip().splitlines()), 5)
+            self.assertIn('| CD | 0.01 ± 0.0001 | 0.4000 ± 0.0030 | 0.5800 ± 0.0010 |', text)
+            path = rheology.figure(rs, os.path.join(tmp, 'f.png'), {'cd': rheology.fit_laws(rs, 'cd')})
+            self.assertGreater(os.path.getsize(path), 1000)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == '__main__':
+    unittest.main()
