@@ -1,12 +1,12 @@
-"""Periodic simple shear at controlled normal stress, by CD or by YADE's MD (yadecd.compare.shear):
-μ(I) and φ(I) of frictional spheres (μ = 0.5).
+"""Plane shear between rough walls at controlled normal stress, periodic in x and y, by CD or by
+YADE's MD (yadecd.compare.shear): μ(I) and φ(I) of frictional spheres (μ = 0.5).
 
     scripts/yade -n -x scripts/shear_rheology.py --out out/shear --method cd --I 0.1,0.03,0.01,0.003
     scripts/yade -n -x scripts/shear_rheology.py --out out/shear --method md --I 0.1,0.03,0.01
     /usr/bin/python3 scripts/shear_figures.py out/shear          # table + figure
 
-The packing (--n spheres, --seed) is made once, by CD, and kept as OUT/packing_n<N>_s<seed>.npz;
-every run of either method starts from it. Each run writes OUT/<method>_I<I>_n<N>_s<seed>.csv (the
+The packing (--n spheres, --seed) is made once, by CD, and kept as OUT/packing_n<N>_s<seed>.yade.gz
+(a YADE archive, with a .json beside it); every run of either method starts from it. Each run writes OUT/<method>_I<I>_n<N>_s<seed>.csv (the
 samples, written as they come) and, when it ends, a .json beside it (its settings and the
 steady-state means with batch-means error bars). A run whose .json exists is skipped, so an
 interrupted sweep is resumed by running the same command (the interrupted run starts again;
@@ -18,8 +18,6 @@ import os
 import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-import numpy as np  # noqa: E402
-
 from yadecd.compare import shear  # noqa: E402
 from yadecd.io import append_csv, provenance, write_json_atomic  # noqa: E402
 
@@ -29,7 +27,7 @@ parser.add_argument('--method', choices=('cd', 'md'), required=True)
 parser.add_argument('--I', default='0.1,0.03,0.01,0.003', help='inertial numbers, comma-separated')
 parser.add_argument('--n', type=int, default=2000, help='spheres in the cell')
 parser.add_argument('--seed', type=int, default=1)
-parser.add_argument('--strain', type=float, default=3.0, help='total shear strain of each run')
+parser.add_argument('--strain', type=float, default=3.0, help='top wall travel over the gap in each run')
 parser.add_argument('--skip-strain', type=float, default=1.0, help='strain discarded as the transient')
 parser.add_argument('--dgamma', type=float, default=5e-4, help='CD: shear strain per step (h = dgamma/γ̇, at most dt_max·t_i)')
 parser.add_argument('--dt-max', type=float, default=0.05, help='CD: largest time step over the inertial time t_i')
@@ -51,16 +49,14 @@ def log(msg):
     print(msg, flush=True)
 
 
-pack_path = os.path.join(args.out, 'packing_n%d_s%d.npz' % (args.n, args.seed))
+pack_path = os.path.join(args.out, 'packing_n%d_s%d.yade.gz' % (args.n, args.seed))
 if os.path.exists(pack_path):
-    with np.load(pack_path) as z:
-        pack = {k: z[k] for k in z.files}
-    log('packing: %s (phi %.4f)' % (pack_path, float(pack['phi'])))
+    log('packing: %s' % pack_path)
 else:
-    pack = shear.packing(n=args.n, seed=args.seed, log=log)
-    np.savez(pack_path + '.tmp.npz', **pack)
-    os.replace(pack_path + '.tmp.npz', pack_path)
-    log('packing: made, phi %.4f, %d steps -> %s' % (pack['phi'], pack['steps'], pack_path))
+    made = shear.packing(pack_path + '.tmp.yade.gz', n=args.n, seed=args.seed, log=log)
+    os.replace(pack_path + '.tmp.yade.gz', pack_path)
+    write_json_atomic(pack_path[:-len('.yade.gz')] + '.json', dict(made, **provenance()))
+    log('packing: made, gap %.2f mm, phi %.4f, %d steps -> %s' % (made['gap'] * 1e3, made['phi'], made['steps'], pack_path))
 
 options = dict(dgamma=args.dgamma, dt_max=args.dt_max, tolerance=args.tolerance) if args.method == 'cd' else \
     dict(young_over_p=args.young_over_p, en_md=args.en_md)
@@ -76,11 +72,12 @@ for I in [float(x) for x in args.I.split(',') if x.strip()]:
         append_csv(_stem + '.csv', dict(zip(fields, row)), fields, start=first[0], stamp=False)
         first[0] = False
 
-    info, rows = shear.run(pack, args.method, I, strain=args.strain, log=log, on_sample=keep, **options)
-    record = dict(info, options=options, summary=shear.summarise(rows, info['gamma_dot'], info['d'], info['rho'], args.skip_strain), packing=pack_path,
-                  seed=args.seed, **provenance())
+    info, rows = shear.run(pack_path, args.method, I, strain=args.strain, log=log, on_sample=keep, **options)
+    summary = shear.summarise(rows, info['d'], info['rho'], info['p'], args.skip_strain)
+    record = dict(info, options=options, summary=summary, packing=pack_path, seed=args.seed, **provenance())
     write_json_atomic(stem + '.json', record)
     s = record['summary']
-    log('%s: mu %.4f ± %.4f, phi %.4f ± %.4f, I %.4g, %.0f s' % (stem, s['mu']['mean'], s['mu']['sem'], s['phi']['mean'],
-                                                               s['phi']['sem'], s['I']['mean'], info['wall_s']))
+    log('%s: mu %.4f ± %.4f, phi %.4f ± %.4f, I %.4g, wall stress %.1f Pa, %.0f s' % (
+        stem, s['mu']['mean'], s['mu']['sem'], s['phi']['mean'], s['phi']['sem'], s['I']['mean'], s['normal_stress']['mean'],
+        info['wall_s']))
 print(json.dumps({'done': args.out}))

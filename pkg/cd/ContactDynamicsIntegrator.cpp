@@ -394,7 +394,7 @@ void ContactDynamicsIntegrator::predictPositions()
 // a velGrad set by the user (Cell.nextVelGrad) takes effect now; with homoDeform > 0 every body's
 // velocity jumps by ΔL·x and its spin by the rotational part of ΔL (ΔL = velGrad − prevVelGrad),
 // so that bodies follow the new mean field; homoDeform > 1 adds the convective term h·L_prev·v
-// to the free velocities (computeFreeVelocities). A changing cell size tells the collider to run.
+// (v before the jump, as NewtonIntegrator) to the free velocities (computeFreeVelocities). A changing cell size tells the collider to run.
 void ContactDynamicsIntegrator::startCellStep()
 {
 	cellMaxVelocitySq = 0;
@@ -565,7 +565,9 @@ void ContactDynamicsIntegrator::computeFreeVelocities()
 		Vector3r  F  = scene->forces.getForce(b->id);
 		Vector3r  T  = scene->forces.getTorque(b->id);
 		if (b->isClump()) static_cast<Clump*>(b->shape.get())->addForceTorqueFromMembers(b->state.get(), scene, F, T);
-		if (scene->isPeriodic && cellHomoDeform > 1) sb.v += h * prevVelGrad * core.records[b->id].vi; // convective term (NewtonIntegrator's)
+		// the convective term, NewtonIntegrator's h·L_prev·v with v before this step's jump ΔL·x
+		if (scene->isPeriodic && cellHomoDeform > 1)
+			sb.v += h * prevVelGrad * (beforeJump.empty() ? core.records[b->id].vi : beforeJump[b->id].first);
 		for (int k = 0; k < 3; ++k)
 			if (sb.invM[k] > 0) sb.v[k] += h * (F[k] * sb.invM[k] + gravity[k]);
 		sb.w += h * sb.invI * T;

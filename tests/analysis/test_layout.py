@@ -1,7 +1,8 @@
 """The package's layout rules, checked on the source:
 
 - what must import without YADE does (``yadecd.analysis`` entire, ``yadecd.pile.protocol``,
-  ``yadecd.io``, the run-management modules but ``runs.runstate``, the pure testing helpers), in a
+  ``yadecd.io``, the run-management modules but ``runs.runstate``, the pure testing helpers, the
+  list of YADE examples run under CD), in a
   fresh interpreter where ``import yade`` fails;
 - no module uses another module's private name (``mod._name`` or ``from mod import _name``
   across modules of yadecd, its scripts or its tests);
@@ -20,8 +21,9 @@ PACKAGE = os.path.join(PY, 'yadecd')
 #: modules that must import without YADE (dotted, below yadecd)
 WITHOUT_YADE = ['analysis', 'analysis.snapshots', 'analysis.surface', 'analysis.stats', 'analysis.forces',
                 'analysis.ground', 'analysis.fabric', 'analysis.figures', 'analysis.report', 'analysis.ensemble',
-                'analysis.protocols', 'pile.protocol', 'io', 'runs', 'runs.checkpoint', 'runs.carry', 'runs.cost',
-                'runs.ensemble', 'testing', 'testing.synthetic', 'testing.faults', 'testing.variant', 'export']
+                'analysis.protocols', 'analysis.rheology', 'pile.protocol', 'io', 'runs', 'runs.checkpoint', 'runs.carry', 'runs.cost',
+                'runs.ensemble', 'testing', 'testing.synthetic', 'testing.faults', 'testing.variant', 'export',
+                'compare', 'compare.examples']
 
 PROBE = r'''
 import importlib, sys

@@ -69,9 +69,9 @@ class TestRecords(unittest.TestCase):
         try:
             for method, I in (('cd', 0.01), ('md', 0.01), ('cd', 0.1)):
                 bm = lambda m, e: dict(mean=m, sem=e, drift_z=0.1)   # noqa: E731
-                rec = dict(method=method, I=I, n=2000, steps=1000, wall_s=10.0, dt=1e-5, ti=1e-3,
+                rec = dict(method=method, I=I, n=2000, steps=1000, wall_s=10.0, dt=1e-5, ti=1e-3, p=2500.0,
                            summary=dict(samples=200, I=bm(I, 1e-4), mu=bm(0.4, 0.003), phi=bm(0.58, 0.001),
-                                        kinetic_share=bm(0.01, 0.001), sweeps=50.0))
+                                        normal_stress=bm(2500.0, 10.0), sweeps=50.0))
                 with open(os.path.join(tmp, '%s_I%g_n2000_s1.json' % (method, I)), 'w') as f:
                     json.dump(rec, f)
             rs = rheology.load_records(tmp)

@@ -30,8 +30,8 @@ def mu_of_I(I, mu_s, mu_2, I0):
 
 def load_records(directory):
     """The run records (``<method>_I<I>_n<N>_s<seed>.json``) of a shear directory, as a list of
-    dicts with method, I (measured mean), its error, mu, phi and their errors, sorted by method
-    and I."""
+    dicts with method, I (measured in the bulk), its error, mu, phi and their errors, the wall's
+    normal stress, sorted by method and I."""
     out = []
     for path in sorted(glob.glob(os.path.join(directory, '*_I*_n*_s*.json'))):
         with open(path) as f:
@@ -40,7 +40,7 @@ def load_records(directory):
         out.append(dict(method=r['method'], I_set=r['I'], I=s['I']['mean'], I_err=s['I']['sem'],
                         mu=s['mu']['mean'], mu_err=s['mu']['sem'], mu_drift=s['mu']['drift_z'],
                         phi=s['phi']['mean'], phi_err=s['phi']['sem'], phi_drift=s['phi']['drift_z'],
-                        kinetic_share=s['kinetic_share']['mean'], sweeps=s.get('sweeps'), n=r['n'],
+                        normal_stress=s['normal_stress']['mean'], p=r['p'], sweeps=s.get('sweeps'), n=r['n'],
                         steps=r['steps'], wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path))
     return sorted(out, key=lambda r: (r['method'], r['I']))
 
@@ -78,13 +78,13 @@ def fit_laws(records, method, I_max=0.1):
 
 
 def table_markdown(records):
-    """One row per run: method, I, μ, φ with their batch-means errors, the kinetic share of
-    σ_zz, steps, wall time."""
-    lines = ['| method | I (measured) | μ = τ/p | φ | kinetic share of σ_zz | steps | time step / t_i | sweeps per step | wall [s] |',
+    """One row per run: method, I, μ, φ with their batch-means errors, the wall's mean normal
+    stress over the imposed p (1 when the control holds), steps, wall time."""
+    lines = ['| method | I (bulk) | μ = τ/p | φ (central half) | wall normal stress / p | steps | time step / t_i | sweeps per step | wall [s] |',
              '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for r in records:
-        lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.2g | %d | %s | %s | %.0f |' % (
-            r['method'].upper(), r['I'], r['I_err'], r['mu'], r['mu_err'], r['phi'], r['phi_err'], r['kinetic_share'],
+        lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.4f | %d | %s | %s | %.0f |' % (
+            r['method'].upper(), r['I'], r['I_err'], r['mu'], r['mu_err'], r['phi'], r['phi_err'], r['normal_stress'] / r['p'],
             r['steps'], '%.3g' % (r['dt'] / r['ti']),
             '%.0f' % r['sweeps'] if r['method'] == 'cd' and r['sweeps'] is not None else '–', r['wall_s']))
     return '\n'.join(lines) + '\n'

@@ -1,42 +1,46 @@
-"""Periodic simple shear at controlled normal stress: the μ(I) and φ(I) rheology of frictional
-spheres, by Contact Dynamics and by YADE's MD on the same packing (docs/compare.md).
+"""Plane shear at controlled normal stress: the μ(I) and φ(I) rheology of frictional spheres, by
+Contact Dynamics and by YADE's MD on the same packing (docs/compare.md).
 
-The cell holds ``n`` spheres of diameters uniform in d̄(1 ± spread), density ρ, friction μ, no
-gravity. The flow is along x, the gradient along z: L = γ̇ e_x ⊗ e_z (``O.cell.velGrad[0, 2]``),
-and YADE's own :yref:`PeriTriaxController` (``dynCell``: the cell height obeys
-M·d(ε̇_zz)/dt = σ_zz − goal) holds the normal stress σ_zz at −p while the x and y sizes stay
-fixed. The cell flips to a compact base as it shears (``Cell.flipFlippable``).
+The geometry is da Cruz et al.'s (PRE 72, 021309, 2005), in 3D: a cell periodic in x and y (a
+static cell), the grains between two rough walls, each wall one clump of a square monolayer of
+spheres of the mean diameter at random heights (±d/4). The bottom wall is fixed; the top wall
+moves at the velocity V along x, is free along z under the force −p·A (YADE's ForceEngine), and
+can neither turn nor move along y (``blockedDOFs = 'xyXYZ'``, its x velocity prescribed). The
+normal stress is thus imposed by a body of the scene, which Contact Dynamics solves implicitly
+with the contacts (a periodic cell driven by YADE's PeriTriaxController instead bounces on a rigid
+packing: docs/compare.md). Grains: ``n`` spheres of diameters uniform in d̄(1 ± spread),
+density ρ, friction μ (grains and walls), no gravity.
 
 Units are SI, chosen so that the inertial time t_i = d̄·sqrt(ρ/p) is 1 ms (d̄ = 1 mm,
 ρ = 2500 kg/m³, p = 2500 Pa); rigid grains depend on the inertial number I = γ̇·d̄/sqrt(p/ρ)
 only, MD grains also on the stiffness level (E/p, stated with each run).
 
-Measured every ``sample_every`` steps: the shear strain γ, the stress tensor (contacts, by
-``utils.getStress``; kinetic, −(1/V) Σ m v'⊗v' with v' = v − L·x, x the unwrapped position),
-the solid fraction φ = Σ V_grain / V_cell. The steady state is the part after ``skip_strain``:
-μ = σ_xz/σ_zz of the total stress as the ratio of the means, I from the mean σ_zz, φ; error
-bars by batch means (:func:`summarise`).
+Measured every sample: the top wall's travel over the gap (the nominal strain), the contact
+force on the top wall (τ = F_x/A; F_z/A, which must average to p), the grains' velocity profile
+v_x(z), whose straight-line fit over the central half of the gap gives the bulk shear rate γ̇,
+and the solid fraction of that central half (the exact volume of the grains' parts inside it).
+The steady state is the part after ``skip_strain``: μ = τ/p as the ratio of the means,
+I = γ̇·d̄/sqrt(p/ρ) with the mean bulk γ̇, φ; error bars by batch means (:func:`summarise`).
 """
 import math
 import time
 
 import numpy as np
 
-from yade import O, utils, Matrix3, Vector3
-from yade.wrapper import PeriTriaxController
+from yade import O, utils, Vector3
+from yade.wrapper import ForceEngine
 
 from .. import engines, integrator
 from ..analysis.stats import batch_means, batch_ratio
 from ..scenes import material
 
-__all__ = ['REFERENCE', 'inertial_time', 'packing', 'build', 'run', 'summarise', 'SAMPLE_FIELDS']
+__all__ = ['REFERENCE', 'inertial_time', 'packing', 'build', 'run', 'summarise', 'SAMPLE_FIELDS', 'slab_volume']
 
 #: the reference scales [SI]: mean diameter, grain density, normal stress, friction, size spread
 REFERENCE = dict(d=1e-3, rho=2500.0, p=2500.0, mu=0.5, spread=0.2)
 
 #: the columns of a run's time series
-SAMPLE_FIELDS = ('step', 'time', 'gamma', 'phi', 'sxx', 'syy', 'szz', 'sxz', 'kxx', 'kzz', 'kxz',
-                 'mu', 'I', 'n_contacts', 'sweeps', 'wall_s')
+SAMPLE_FIELDS = ('step', 'time', 'strain', 'gap', 'fx', 'fz', 'gamma_dot', 'phi', 'mu', 'n_contacts', 'sweeps', 'wall_s')
 
 
 def inertial_time(d=REFERENCE['d'], rho=REFERENCE['rho'], p=REFERENCE['p']):
@@ -44,69 +48,91 @@ def inertial_time(d=REFERENCE['d'], rho=REFERENCE['rho'], p=REFERENCE['p']):
     return d * math.sqrt(rho / p)
 
 
-def _cell_mass(phi, height, rho):
-    """The controller's cell 'mass' M [kg/m] (M·ε̈ = Δσ): a lid of the sample's own mass on a
-    column of the cell's height, ρ φ L_z², whose response time to a gap of δ is about
-    t_i·sqrt(2 φ (δ/d)(L_z/d)), well below the shear's time per unit strain at I ≤ 0.1."""
-    return rho * phi * height ** 2
+def slab_volume(z, r, z0, z1):
+    """Volume [m³] of the part of each sphere (centre height ``z``, radius ``r``, arrays) between
+    the planes z0 < z1, by the cap formula V(h) = π h² (3r − h)/3 of the part of a sphere below a
+    plane h above its bottom."""
+    z, r = np.asarray(z, dtype=float), np.asarray(r, dtype=float)
+
+    def below(zp):
+        h = np.clip(zp - (z - r), 0.0, 2 * r)
+        return math.pi * h * h * (3 * r - h) / 3
+
+    return below(z1) - below(z0)
 
 
-def _controller(goal, mask, mass, rate):
-    return PeriTriaxController(goal=Vector3(*goal), stressMask=mask, dynCell=True, mass=mass,
-                               maxStrainRate=Vector3(rate, rate, rate), maxUnbalanced=-1.0,
-                               relStressTol=0.0, absStressTol=0.0, label='shearControl')
+def _wall(z, side, d, rng, mat):
+    """One rough wall: a clump of a square monolayer of touching spheres of diameter ``d``
+    covering the x–y period ``side``, at heights z ± d/4 at random. Returns (clump id, members)."""
+    k = int(round(side / d))
+    pitch = side / k
+    members = [utils.sphere(((i + 0.5) * pitch, (j + 0.5) * pitch, z + rng.uniform(-0.25, 0.25) * d), 0.5 * d, material=mat)
+               for i in range(k) for j in range(k)]
+    cid, ids = O.bodies.appendClumped(members)
+    return cid, list(ids)
 
 
-def solid_fraction():
-    return sum(4.0 / 3.0 * math.pi * b.shape.radius ** 3 for b in O.bodies) / O.cell.hSize.determinant()
+def _parts():
+    """The scene's walls and grains, by their labels (set by :func:`packing`)."""
+    top = [b for b in O.bodies if b.isClump and b.state.blockedDOFs == 'xyXYZ'][0]
+    bottom = [b for b in O.bodies if b.isClump and b.id != top.id][0]
+    grains = [b for b in O.bodies if not b.isClump and not b.isClumpMember]
+    members = {m for m in top.shape.members.keys()}
+    return bottom, top, grains, members
 
 
-def packing(n=2000, seed=1, phi0=0.3, tolerance=1e-4, max_steps=40000, log=print, **ref):
-    """A random gas of ``n`` spheres (YADE's ``makeCloud``, periodic, at solid fraction ``phi0``)
-    compressed isotropically to −p by :yref:`PeriTriaxController` under Contact Dynamics, until
-    every normal stress is within 1 % of p and the kinetic energy is below 1e-6 p·V.
-
-    Returns a dict of arrays (``pos`` [m], ``radius`` [m], ``hsize`` [m], ``phi``, the reference
-    scales) from which :func:`build` starts both methods' runs."""
+def packing(path, n=2000, seed=1, tolerance=1e-4, max_steps=60000, log=print, **ref):
+    """A gas of ``n`` grains (YADE's ``makeCloud`` at solid fraction 0.3) between the walls,
+    compressed by the top wall under −p·A (V = 0) under Contact Dynamics until the wall has
+    stopped (travel below 1e-5 d̄ in 200 steps) and the grains are at rest (kinetic energy below
+    1e-7 p·V). Saved as a YADE archive at ``path`` (``.yade.gz``), from which :func:`build` starts
+    the runs of both methods. Returns a dict (side, gap, φ of the central half, steps)."""
     from yade import pack
     r = dict(REFERENCE, **ref)
-    d, p, rho = r['d'], r['p'], r['rho']
-    ti = inertial_time(d, rho, p)
-    mean_vol = math.pi / 6 * d ** 3 * (1 + r['spread'] ** 2)      # E[D³] for D uniform in d(1 ± s)
-    side = (n * mean_vol / phi0) ** (1 / 3)
+    d, rho, p = r['d'], r['rho'], r['p']
+    rng = np.random.default_rng(seed)
+    volume = n * math.pi / 6 * d ** 3 * (1 + r['spread'] ** 2)
+    side = d * round(math.sqrt(volume / 0.59 / (18 * d)) / d)          # about 18 d of grains at φ = 0.59
+    height = volume / 0.3 / side ** 2
     O.reset()
     O.periodic = True
-    O.cell.setBox(side, side, side)
-    sp = pack.SpherePack()
-    got = sp.makeCloud((0, 0, 0), (side, side, side), rMean=d / 2, rRelFuzz=r['spread'], num=n, periodic=True, seed=seed)
-    if got != n:
-        raise RuntimeError('makeCloud placed %d of %d spheres at phi0 = %g: lower phi0' % (got, n, phi0))
+    O.cell.setBox(side, side, 3 * (height + 6 * d))
     mat = material(r['mu'], rho)
+    bottom, _ = _wall(2 * d, side, d, rng, mat)
+    top, _ = _wall(2 * d + height + 2.5 * d, side, d, rng, mat)
+    sp = pack.SpherePack()
+    got = sp.makeCloud((0, 0, 2.75 * d), (side, side, 2.75 * d + height), rMean=d / 2, rRelFuzz=r['spread'], num=n, seed=seed)
+    if got != n:
+        raise RuntimeError('makeCloud placed %d of %d grains: give the gas more room' % (got, n))
     for c, rad in sp:
         O.bodies.append(utils.sphere(c, rad, material=mat))
-    ctrl = _controller((-p, -p, -p), 7, _cell_mass(0.6, side, rho), 1.0 / ti)
-    O.engines = engines(gravity=(0, 0, 0), extra=[ctrl], tolerance=tolerance, maxIter=5000)
+    O.bodies[bottom].state.blockedDOFs = 'xyzXYZ'
+    O.bodies[top].state.blockedDOFs = 'xyXYZ'
+    O.engines = engines(gravity=(0, 0, 0), tolerance=tolerance, maxIter=5000,
+                        extra=[ForceEngine(force=(0, 0, -p * side * side), ids=[top], label='press')])
     integrator().warnUnconverged = False
-    O.dt = 0.05 * ti
-    steps = 0
+    ti = inertial_time(d, rho, p)
+    O.dt = 0.02 * ti
+    steps, z_prev = 0, O.bodies[top].state.pos[2]
     while steps < max_steps:
         O.run(200, True)
         steps += 200
-        s = utils.getStress()
-        ke = sum(0.5 * b.state.mass * b.state.vel.squaredNorm() for b in O.bodies)
-        V = O.cell.hSize.determinant()
-        ok = all(abs(s[k, k] + p) < 0.01 * p for k in range(3)) and ke < 1e-6 * p * V
-        if steps % 2000 == 0 or ok:
-            log('packing: step %d, phi %.4f, stress %.1f %.1f %.1f Pa, kinetic %.2e pV'
-                % (steps, solid_fraction(), s[0, 0], s[1, 1], s[2, 2], ke / (p * V)))
-        if ok:
+        z = O.bodies[top].state.pos[2]
+        ke = sum(0.5 * b.state.mass * b.state.vel.squaredNorm() for b in O.bodies if not b.isClumpMember)
+        settled = abs(z - z_prev) < 1e-5 * d and ke < 1e-7 * p * side * side * (z - O.bodies[bottom].state.pos[2])
+        if steps % 4000 == 0 or settled:
+            log('packing: step %d, gap %.3f mm, wall moved %.2e d in 200 steps, kinetic %.2e pV'
+                % (steps, (z - O.bodies[bottom].state.pos[2]) * 1e3, abs(z - z_prev) / d,
+                   ke / (p * side * side * (z - O.bodies[bottom].state.pos[2]))))
+        if settled:
             break
+        z_prev = z
     else:
-        raise RuntimeError('the packing did not settle at p in %d steps' % max_steps)
-    bodies = list(O.bodies)
-    return dict(pos=np.array([tuple(b.state.pos) for b in bodies]), radius=np.array([b.shape.radius for b in bodies]),
-                hsize=np.array(O.cell.hSize), phi=solid_fraction(), n=n, seed=seed, steps=steps,
-                **{k: np.array(v) for k, v in r.items()})
+        raise RuntimeError('the packing did not settle under p in %d steps' % max_steps)
+    O.save(path)
+    sample = measure(O.bodies[bottom], O.bodies[top], [b for b in O.bodies if not b.isClump and not b.isClumpMember],
+                     set(O.bodies[top].shape.members.keys()))
+    return dict(side=side, gap=sample['gap'], phi=sample['phi'], steps=steps, n=n, seed=seed, **r)
 
 
 def _md_engines(young, en):
@@ -119,61 +145,73 @@ def _md_engines(young, en):
     return md_engines(gravity=(0, 0, 0), law='hertz', damping=0.0, en=en)
 
 
-def build(pack, method, I, dgamma=5e-4, dt_max=0.05, tolerance=1e-4, young_over_p=1e5, en_md=0.1, safety=0.5):
-    """The packing ``pack`` (:func:`packing`) sheared at inertial number ``I`` by ``method``
-    ('cd' or 'md'). CD: time step h = min(dgamma/γ̇, dt_max·t_i), solver ``tolerance``, e_n = 0.
-    MD: Young's modulus E = ``young_over_p``·p, restitution ``en_md``, h = ``safety``·PWaveTimeStep.
-    Returns a dict: gamma_dot [1/s], dt [s], the controller."""
+def build(path, method, I, dgamma=5e-4, dt_max=0.05, tolerance=1e-4, young_over_p=1e5, en_md=0.1, safety=0.5, **ref):
+    """The packing saved at ``path`` (:func:`packing`) sheared at the inertial number ``I`` by
+    ``method`` ('cd' or 'md'): the top wall moves at V = γ̇·gap with γ̇ = I·sqrt(p/ρ)/d̄ (the bulk
+    rate is measured; wall slip makes it smaller). CD: time step h = min(dgamma/γ̇, dt_max·t_i),
+    solver ``tolerance``, e_n = 0. MD: Young's modulus E = ``young_over_p``·p, restitution
+    ``en_md``, h = ``safety``·PWaveTimeStep. Returns a dict (gamma_dot, V, dt, ti)."""
     if method not in ('cd', 'md'):
         raise ValueError("method must be 'cd' or 'md', not %r" % (method,))
     if not 0 < I <= 1:
         raise ValueError('the inertial number I must be in (0, 1], not %r' % (I,))
-    d, rho, p, mu = (float(pack[k]) for k in ('d', 'rho', 'p', 'mu'))
+    r = dict(REFERENCE, **ref)
+    d, rho, p = r['d'], r['rho'], r['p']
     ti = inertial_time(d, rho, p)
     gamma_dot = I / ti
-    O.reset()
-    O.periodic = True
-    O.cell.hSize = Matrix3(*np.asarray(pack['hsize']).ravel())
-    mat = material(mu, rho)
-    for c, rad in zip(pack['pos'], pack['radius']):
-        O.bodies.append(utils.sphere(tuple(c), float(rad), material=mat))
-    height = float(np.asarray(pack['hsize'])[2, 2])
-    ctrl = _controller((0.0, 0.0, -p), 4, _cell_mass(float(pack['phi']), height, rho), 10.0 / ti)
-    if method == 'cd':
-        O.engines = engines(gravity=(0, 0, 0), extra=[ctrl], tolerance=tolerance, maxIter=5000)
-        integrator().warnUnconverged = False
-        O.dt = min(dgamma / gamma_dot, dt_max * ti)
-    else:
+    O.load(path)
+    bottom, top, grains, members = _parts()
+    gap = top.state.pos[2] - bottom.state.pos[2]
+    V = gamma_dot * gap
+    if method == 'md':
+        press = [e for e in O.engines if isinstance(e, ForceEngine)]
         O.engines = _md_engines(young_over_p * p, en_md)
-        O.engines = O.engines[:-1] + [ctrl] + O.engines[-1:]
+        O.engines = O.engines[:-1] + press + O.engines[-1:]
         O.dt = safety * utils.PWaveTimeStep()
-    O.cell.flipFlippable = True
-    O.cell.velGrad = Matrix3(0, 0, gamma_dot, 0, 0, 0, 0, 0, 0)
-    return dict(gamma_dot=gamma_dot, dt=O.dt, ti=ti, controller=ctrl, method=method, I=I)
+    else:
+        integrator().tolerance = tolerance
+        O.dt = min(dgamma / gamma_dot, dt_max * ti)
+    top.state.vel = Vector3(V, 0, 0)
+    return dict(gamma_dot=gamma_dot, V=V, dt=O.dt, ti=ti, method=method, I=I, gap0=gap)
 
 
-def _stress_sample():
-    """Contact stress (utils.getStress), kinetic stress of the fluctuations, solid fraction."""
-    s = utils.getStress()
-    L = O.cell.velGrad
-    V = O.cell.hSize.determinant()
-    k = np.zeros((3, 3))
-    vol = 0.0
-    for b in O.bodies:
-        v = b.state.vel - L * b.state.pos
-        k -= b.state.mass * np.outer(tuple(v), tuple(v))
-        vol += 4.0 / 3.0 * math.pi * b.shape.radius ** 3
-    return np.array([[s[i, j] for j in range(3)] for i in range(3)]), k / V, vol / V
+def measure(bottom, top, grains, top_members):
+    """One sample: gap [m], contact force on the top wall [N], bulk shear rate [1/s] (fit of
+    v_x(z) over the central half of the gap), solid fraction of the central half."""
+    zb = bottom.state.pos[2]
+    gap = top.state.pos[2] - zb
+    f = Vector3(0, 0, 0)
+    n_contacts = 0
+    for i in O.interactions:
+        if not i.isReal:
+            continue
+        n_contacts += 1
+        if i.id2 in top_members:
+            f += i.phys.normalForce + i.phys.shearForce
+        elif i.id1 in top_members:
+            f -= i.phys.normalForce + i.phys.shearForce
+    z = np.array([b.state.pos[2] for b in grains])
+    vx = np.array([b.state.vel[0] for b in grains])
+    rad = np.array([b.shape.radius for b in grains])
+    z0, z1 = zb + 0.25 * gap, zb + 0.75 * gap
+    mid = (z > z0) & (z < z1)
+    slope = np.polyfit(z[mid], vx[mid], 1)[0] if mid.sum() > 2 else float('nan')
+    side2 = abs(O.cell.hSize[0, 0] * O.cell.hSize[1, 1])
+    phi = float(slab_volume(z, rad, z0, z1).sum() / (side2 * (z1 - z0)))
+    return dict(gap=gap, fx=f[0], fz=f[2], gamma_dot=float(slope), phi=phi, n_contacts=n_contacts)
 
 
-def run(pack, method, I, strain=3.0, samples_per_strain=100, log=print, on_sample=None, **options):
-    """Shear ``pack`` at inertial number ``I`` to the total ``strain`` by ``method``; returns
-    (the run's description dict, the list of sample rows in :data:`SAMPLE_FIELDS` order).
-    ``on_sample(row)`` is called with each row as it is measured (to write it at once)."""
-    info = build(pack, method, I, **options)
-    d, rho, p = (float(pack[k]) for k in ('d', 'rho', 'p'))
-    per_sample = max(1, int(round(1.0 / (samples_per_strain * info['gamma_dot'] * O.dt))))
-    n_samples = int(math.ceil(strain / (per_sample * info['gamma_dot'] * O.dt)))
+def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sample=None, **options):
+    """Shear the packing at ``path`` at inertial number ``I`` to the nominal ``strain`` (top wall
+    travel over the gap) by ``method``; returns (the run's description dict, the sample rows in
+    :data:`SAMPLE_FIELDS` order). ``on_sample(row)`` is called with each row as it is measured."""
+    info = build(path, method, I, **options)
+    bottom, top, grains, members = _parts()
+    rate = info['V'] / info['gap0']
+    per_sample = max(1, int(round(1.0 / (samples_per_strain * rate * O.dt))))
+    n_samples = int(math.ceil(strain / (per_sample * rate * O.dt)))
+    x0 = top.state.pos[0]
+    area = abs(O.cell.hSize[0, 0] * O.cell.hSize[1, 1])
     cd = integrator() if method == 'cd' else None
     rows, start = [], time.time()
     for k in range(n_samples):
@@ -181,43 +219,37 @@ def run(pack, method, I, strain=3.0, samples_per_strain=100, log=print, on_sampl
         for _ in range(per_sample):
             O.step()
             sweeps += cd.iterations if cd is not None else 0
-        sc, sk, phi = _stress_sample()
-        st = sc + sk
-        szz, sxz = st[2, 2], st[0, 2]
-        mu = abs(sxz) / -szz if szz < 0 else float('nan')
-        Im = info['gamma_dot'] * d / math.sqrt(-szz / rho) if szz < 0 else float('nan')
-        gamma = O.time * info['gamma_dot']
-        rows.append((O.iter, O.time, gamma, phi, st[0, 0], st[1, 1], szz, sxz, sk[0, 0], sk[2, 2], sk[0, 2], mu, Im,
-                     len([i for i in O.interactions if i.isReal]), sweeps / per_sample, time.time() - start))
+        m = measure(bottom, top, grains, members)
+        strain_now = (top.state.pos[0] - x0) / info['gap0']
+        mu = abs(m['fx']) / m['fz'] if m['fz'] > 0 else float('nan')
+        rows.append((O.iter, O.time, strain_now, m['gap'], m['fx'] / area, m['fz'] / area, m['gamma_dot'], m['phi'], mu,
+                     m['n_contacts'], sweeps / per_sample, time.time() - start))
         if on_sample is not None:
             on_sample(rows[-1])
         if (k + 1) % max(1, n_samples // 20) == 0:
-            log('%s I=%g: gamma %.2f, mu %.4f, phi %.4f, I %.4g, %d contacts, %.0f sweeps/step, %.0f s'
-                % (method, I, gamma, mu, phi, Im, rows[-1][13], rows[-1][14], rows[-1][15]))
-    info = {k: v for k, v in info.items() if k != 'controller'}
+            log('%s I=%g: strain %.2f, mu %.3f, phi %.4f, bulk rate %.3g/s (wall %.3g/s), %d contacts, %.0f sweeps/step, %.0f s'
+                % (method, I, strain_now, mu, m['phi'], m['gamma_dot'], rate, m['n_contacts'], rows[-1][10], rows[-1][11]))
     info.update(per_sample=per_sample, n_samples=n_samples, strain=strain, steps=O.iter, wall_s=time.time() - start,
-                n=len(O.bodies), d=d, rho=rho, p=p)
+                n=len(grains), area=area, d=float(options.get('d', REFERENCE['d'])), rho=float(options.get('rho', REFERENCE['rho'])),
+                p=float(options.get('p', REFERENCE['p'])))
     return info, rows
 
 
-def summarise(rows, gamma_dot, d, rho, skip_strain=1.0, n_batches=10):
+def summarise(rows, d, rho, p, skip_strain=1.0, n_batches=10):
     """Steady-state values over the samples after ``skip_strain``, with batch-means errors:
-    μ = σ_xz/σ_zz as the ratio of the means (:func:`batch_ratio`: the normal stress of a rigid
-    packing under a dynamic cell fluctuates strongly, and the mean of per-sample ratios would be
-    biased), the normal stress p = −σ_zz, I = γ̇ d/sqrt(p/ρ) from the mean p (its error by the
-    delta method), φ, and the kinetic share of σ_zz."""
+    μ = τ/σ_zz as the ratio of the means of the wall's stresses (:func:`batch_ratio`), the wall's
+    normal stress (whose mean must be the imposed p), the bulk shear rate and I = γ̇ d/sqrt(p/ρ),
+    φ of the central half."""
     col = {f: i for i, f in enumerate(SAMPLE_FIELDS)}
-    steady = [r for r in rows if r[col['gamma']] >= skip_strain]
+    steady = [r for r in rows if r[col['strain']] >= skip_strain]
     out = {'samples': len(steady), 'skip_strain': skip_strain}
-    mu = batch_ratio([r[col['sxz']] for r in steady], [r[col['szz']] for r in steady], n_batches)
-    if mu['mean'] < 0:       # the sign of σ_xz follows the sense of the shear
-        mu = dict(mu, mean=-mu['mean'], ci95=(-mu['ci95'][1], -mu['ci95'][0]), drift_z=-mu['drift_z'])
+    mu = batch_ratio([abs(r[col['fx']]) for r in steady], [r[col['fz']] for r in steady], n_batches)
     out['mu'] = mu
-    out['p'] = batch_means([-r[col['szz']] for r in steady], n_batches)
-    p, sp = out['p']['mean'], out['p']['sem']
-    I = gamma_dot * d / math.sqrt(p / rho) if p > 0 else float('nan')
-    out['I'] = {'mean': I, 'sem': 0.5 * I * sp / p if p > 0 else float('nan'), 'drift_z': -out['p']['drift_z']}
+    out['normal_stress'] = batch_means([r[col['fz']] for r in steady], n_batches)
+    out['gamma_dot'] = batch_means([r[col['gamma_dot']] for r in steady], n_batches)
+    scale = d / math.sqrt(p / rho)
+    g = out['gamma_dot']
+    out['I'] = {'mean': g['mean'] * scale, 'sem': g['sem'] * scale, 'drift_z': g['drift_z']}
     out['phi'] = batch_means([r[col['phi']] for r in steady], n_batches)
-    out['kinetic_share'] = batch_ratio([r[col['kzz']] for r in steady], [r[col['szz']] for r in steady], n_batches)
     out['sweeps'] = float(np.mean([r[col['sweeps']] for r in steady])) if steady else float('nan')
     return out
