@@ -6,7 +6,8 @@ yadecd.engines(), which do not and why (yadecd.compare.examples.EXAMPLES).
 EXAMPLES_DIR defaults to the examples of the YADE tree the set-up fetched
 (~/.cache/yade-cd/src/trunk-<version>/examples). Each example runs twice (one YADE process per run,
 headless, a time limit of --timeout seconds each), with the same time step and step budget; runs
-whose JSON exists are skipped (--overwrite redoes them). Writes OUT/examples.csv and
+whose JSON exists are skipped (--overwrite redoes them). A script that waits for the keyboard
+(input()) gets Enter. Writes OUT/examples.csv and
 OUT/examples.md (the table); --docs copies both to docs/data/.
 """
 import argparse
@@ -33,7 +34,7 @@ def run_one(example, method, steps, out_json, timeout):
     cmd = [os.path.join(REPO, 'scripts', 'yade'), '-j1', '-n', '-x', os.path.join(REPO, 'scripts', 'example_under_cd.py'),
            example, '--method', method, '--steps', str(steps), '--json', out_json]
     try:
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, input='\n' * 1000)   # Enter to any prompt
     except subprocess.TimeoutExpired:
         return dict(status='failed', error='over the time limit of %d s' % timeout, steps=None)
     if os.path.exists(out_json):

@@ -179,8 +179,10 @@ class ExampleRun:
             pass
         with open(self.path) as f:
             source = substitute(f.read())
-        namespace = dict(vars(__import__('__main__')))
-        namespace.update(budget_run=self.budget_run, __file__=self.path, __name__='__main__')
+        # the script runs in __main__ itself, as under ``yade -x``: its PyRunner commands look
+        # their functions up there
+        namespace = vars(__import__('__main__'))
+        namespace.update(budget_run=self.budget_run, __file__=self.path)
         start = time.time()
         status, error = 'ran', ''
         try:
