@@ -69,19 +69,25 @@ def dimer_on_plane(theta, mu, along=True, r=0.01, dt=1e-4, spacing=2.2, density=
     return {'clump': cid, 'members': ids, 'floor': floor, 'g': g, 'r': r}
 
 
+def open_box(box, mat):
+    """Walls x, y = 0 and ``box`` and the floor z = 0, of material ``mat``: an open box."""
+    for ax in (0, 1):
+        O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
+        O.bodies.append(utils.wall(box, axis=ax, sense=-1, material=mat))
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+
+
 def clump_heap(n_dimers=8, n_spheres=4, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, spacing=2.2, **opts):
     """``n_dimers`` :func:`dimer` clumps (random axes) and ``n_spheres`` spheres of radius ``r``,
-    on a grid of cells 1.05·(spacing + 2)·r wide (a dimer in any orientation fits one) above the floor z=0 of a box of side ``box`` (walls
-    x, y = 0, box), dropped from rest: a small heap of clumps and spheres together.
+    on a grid of cells 1.05·(spacing + 2)·r wide (a dimer in any orientation fits one) above the
+    floor of an :func:`open_box` of side ``box``, dropped from rest: a small heap of clumps and
+    spheres together.
     Returns ``{'clumps': [...], 'members': [[...], ...], 'spheres': [...]}``."""
     import random
     O.reset()
     rnd = random.Random(seed)
     mat = material(mu)
-    for ax in (0, 1):
-        O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
-        O.bodies.append(utils.wall(box, axis=ax, sense=-1, material=mat))
-    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    open_box(box, mat)
     cell = 1.05 * (spacing + 2) * r
     per_row = max(1, int(box / cell))
     sites = [((k % per_row + 0.5) * cell, (k // per_row % per_row + 0.5) * cell, (k // per_row ** 2 + 0.5) * cell)
@@ -202,10 +208,7 @@ def random_loose_packing(n=30, r=0.005, box=0.04, mu=0.4, dt=2e-4, seed=1, **opt
     O.reset()
     rnd = random.Random(seed)
     mat = material(mu)
-    for ax in (0, 1):
-        O.bodies.append(utils.wall(0, axis=ax, sense=1, material=mat))
-        O.bodies.append(utils.wall(box, axis=ax, sense=-1, material=mat))
-    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    open_box(box, mat)
     placed = []
     z = 1.3 * r
     while len(placed) < n:

@@ -79,6 +79,8 @@ class TestRecords(unittest.TestCase):
             text = rheology.table_markdown(rs)
             self.assertEqual(len(text.strip().splitlines()), 5)
             self.assertIn('| CD | 0.01 ± 0.0001 | 0.4000 ± 0.0030 | 0.5800 ± 0.0010 |', text)
+            self.assertNotIn('not steady', text)
+            self.assertEqual(rheology.drift_cell(dict(mu_drift=0.5, phi_drift=-4.9, I_drift=None)), '0.5, -4.9, – (not steady)')
             path = rheology.figure(rs, os.path.join(tmp, 'f.png'), {'cd': rheology.fit_laws(rs, 'cd')})
             self.assertGreater(os.path.getsize(path), 1000)
         finally:

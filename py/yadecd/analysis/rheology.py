@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-__all__ = ['LITERATURE', 'load_records', 'weighted_line', 'fit_laws', 'table_markdown', 'figure']
+__all__ = ['LITERATURE', 'load_records', 'weighted_line', 'fit_laws', 'table_markdown', 'drift_cell', 'figure']
 
 #: published μ(I) laws drawn for reference: name → (μ_s, μ_2, I_0, source, system)
 LITERATURE = {
@@ -40,6 +40,7 @@ def load_records(directory):
         out.append(dict(method=r['method'], I_set=r['I'], I=s['I']['mean'], I_err=s['I']['sem'],
                         mu=s['mu']['mean'], mu_err=s['mu']['sem'], mu_drift=s['mu']['drift_z'],
                         phi=s['phi']['mean'], phi_err=s['phi']['sem'], phi_drift=s['phi']['drift_z'],
+                        I_drift=s['I'].get('drift_z'),
                         normal_stress=s['normal_stress']['mean'], p=r['p'], sweeps=s.get('sweeps'), n=r['n'],
                         steps=r['steps'], wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path))
     return sorted(out, key=lambda r: (r['method'], r['I']))
@@ -79,15 +80,27 @@ def fit_laws(records, method, I_max=0.1):
 
 def table_markdown(records):
     """One row per run: method, I, μ, φ with their batch-means errors, the wall's mean normal
-    stress over the imposed p (1 when the control holds), steps, wall time."""
-    lines = ['| method | I (bulk) | μ = τ/p | φ (central half) | wall normal stress / p | steps | time step / t_i | sweeps per step | wall [s] |',
-             '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
+    stress over the imposed p (1 when the control holds), steps, wall time, and the drift check
+    (:func:`drift_cell`)."""
+    lines = ['| method | I (bulk) | μ = τ/p | φ (central half) | wall normal stress / p | steps | time step / t_i | sweeps per step | wall [s] | drift z of μ, φ, I |',
+             '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for r in records:
         lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.4f | %d | %s | %s | %.0f |' % (
             r['method'].upper(), r['I'], r['I_err'], r['mu'], r['mu_err'], r['phi'], r['phi_err'], r['normal_stress'] / r['p'],
             r['steps'], '%.3g' % (r['dt'] / r['ti']),
-            '%.0f' % r['sweeps'] if r['method'] == 'cd' and r['sweeps'] is not None else '–', r['wall_s']))
+            '%.0f' % r['sweeps'] if r['method'] == 'cd' and r['sweeps'] is not None else '–', r['wall_s'])
+            + ' %s |' % drift_cell(r))
     return '\n'.join(lines) + '\n'
+
+
+def drift_cell(r, limit=3.0):
+    """The drift z-scores of μ, φ and I (second half of the steady window against the first, in
+    standard errors), with 'not steady' when one exceeds ``limit``."""
+    zs = [r.get(k) for k in ('mu_drift', 'phi_drift', 'I_drift')]
+    text = ', '.join('%.1f' % z if z is not None and math.isfinite(z) else '–' for z in zs)
+    if any(z is not None and math.isfinite(z) and abs(z) > limit for z in zs):
+        text += ' (not steady)'
+    return text
 
 
 def figure(records, path, fits=None):

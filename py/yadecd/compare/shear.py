@@ -215,7 +215,7 @@ def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sampl
     rate = info['V'] / info['gap0']
     per_sample = max(1, int(round(1.0 / (samples_per_strain * rate * O.dt))))
     n_samples = int(math.ceil(strain / (per_sample * rate * O.dt)))
-    x0 = top.state.pos[0]
+    x0, iter0 = top.state.pos[0], O.iter
     area = abs(O.cell.hSize[0, 0] * O.cell.hSize[1, 1])
     cd = integrator() if method == 'cd' else None
     rows, start = [], time.time()
@@ -234,7 +234,7 @@ def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sampl
         if (k + 1) % max(1, n_samples // 20) == 0:
             log('%s I=%g: strain %.2f, mu %.3f, phi %.4f, bulk rate %.3g/s (wall %.3g/s), %d contacts, %.0f sweeps/step, %.0f s'
                 % (method, I, strain_now, mu, m['phi'], m['gamma_dot'], rate, m['n_contacts'], rows[-1][10], rows[-1][11]))
-    info.update(per_sample=per_sample, n_samples=n_samples, strain=strain, steps=O.iter, wall_s=time.time() - start,
+    info.update(per_sample=per_sample, n_samples=n_samples, strain=strain, steps=O.iter - iter0, wall_s=time.time() - start,
                 n=len(grains), area=area, d=float(options.get('d', REFERENCE['d'])), rho=float(options.get('rho', REFERENCE['rho'])),
                 p=float(options.get('p', REFERENCE['p'])))
     return info, rows
