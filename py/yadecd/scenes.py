@@ -11,7 +11,7 @@ from yade.wrapper import FrictMat, InteractionLoop
 
 from . import engines, integrator
 
-__all__ = ['material', 'sphere_on_plane', 'dimer', 'dimer_on_plane', 'clump_heap', 'column', 'tetrahedron', 'binary_collision',
+__all__ = ['material', 'sphere_on_plane', 'dimer', 'dimer_on_plane', 'clump_heap', 'dimer_column', 'column', 'tetrahedron', 'binary_collision',
            'projectile', 'point_on_sphere', 'mass_ratio_stack', 'random_loose_packing', 'fcc_block', 'cradle', 'set_cd']
 
 
@@ -116,6 +116,19 @@ def column(n, r=0.01, mu=0.3, dt=1e-4, gap=0.0, density=1000.0, **opts):
     O.engines = engines(gravity=(0, 0, -9.81), **opts)
     O.dt = dt
     return {'ids': ids, 'm': O.bodies[ids[0]].state.mass, 'r': r}
+
+
+def dimer_column(n, r=0.01, mu=0.3, dt=1e-4, spacing=2.2, density=1000.0, **opts):
+    """``n`` :func:`dimer` clumps lying along x on the wall z=0, stacked, each resting on the one
+    below by both members (2 contacts a level), at rest. Returns ``{'clumps': [...] (bottom to
+    top), 'm': a clump's mass, 'r': r}``."""
+    O.reset()
+    mat = material(mu, density)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    clumps = [dimer((0, 0, r + 2 * r * k), (1, 0, 0), r, spacing, mat)[0] for k in range(n)]
+    O.engines = engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = dt
+    return {'clumps': clumps, 'm': O.bodies[clumps[0]].state.mass, 'r': r}
 
 
 def tetrahedron(r=0.01, mu=0.5, dt=1e-4, **opts):

@@ -205,6 +205,21 @@ class TestStackedClumps(unittest.TestCase):
         self.assertLess(utils.unbalancedForce(), 1e-9)
 
 
+class TestDimerColumn(unittest.TestCase):
+    """scenes.dimer_column (the comparison's clump scene): ten dimers stacked along x, each on the
+    one below by both members. At rest: every clump still (to 1e-12 m/s), the floor carrying
+    exactly the column's weight 10·m·g (to 1e-9), two loaded contacts per level."""
+
+    def test_carries_its_weight(self):
+        sc = scenes.dimer_column(10, tolerance=1e-12, maxIter=100000)
+        floor = 0
+        run(100)
+        for cid in sc['clumps']:
+            self.assertLess(O.bodies[cid].state.vel.norm(), 1e-12)
+        self.assertAlmostEqual(-O.forces.f(floor)[2] / (10 * sc['m'] * G), 1, delta=1e-9)
+        self.assertEqual(len([i for i in O.interactions if i.isReal and i.phys.normalForce.norm() > 0]), 20)
+
+
 class TestFixedAndBlocked(unittest.TestCase):
 
     def test_sphere_rests_on_a_fixed_clump(self):

@@ -170,6 +170,28 @@ class Column(Scene):
         return out
 
 
+class DimerColumn(Column):
+    """``scenes.dimer_column(n)``: n dimer clumps lying along x, stacked, each on the one below
+    by both members, on a wall. Errors as for the column: floor force vs n·m_clump·g and
+    interpenetration; T = 0.5 s."""
+    name = 'dimer_column'
+
+    def build(self):
+        self.n = self.kw.get('n', 10)
+        self.case = 'N=%d' % self.n
+        self.T = self.kw.get('T', 0.5)
+        self.info = scenes.dimer_column(self.n)
+        self._gravity = (0, 0, -G)
+        self.W = self.n * self.info['m'] * G
+        self.d = 2 * self.info['r']
+        self.force_err, self.window_overlap = [], []
+
+    def check_failure(self):
+        z = [O.bodies[i].state.pos[2] for i in self.info['clumps']]
+        if z[0] < 0 or any(b <= a for a, b in zip(z, z[1:])):
+            return 'tunnels'
+
+
 class MassRatio(Column):
     """``scenes.mass_ratio_stack(ratio)``: a sphere ``ratio`` times heavier on a light one on a
     wall. Errors as for the column, floor force vs (1 + ratio)·m·g; T = 1 s."""
@@ -295,4 +317,4 @@ class Cradle(Scene):
         return {'error': max(err, pe), 'vel_error': err, 'pos_error': pe}
 
 
-SCENES = {c.name: c for c in (Incline, Column, MassRatio, Binary, Projectile, Cradle)}
+SCENES = {c.name: c for c in (Incline, Column, MassRatio, Binary, Projectile, Cradle, DimerColumn)}

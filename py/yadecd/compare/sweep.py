@@ -27,7 +27,10 @@ CASES = {
     'binary': [{'en': 1.0}, {'en': 0.5}],
     'projectile': [{'speed': 1.0}, {'speed': 10.0}, {'speed': 100.0}, {'speed': 1000.0}],
     'cradle': [{'n': 5}],
+    'dimer_column': [{'n': 10}, {'n': 40}],
 }
+#: the quasi-static scenes (MD may damp; CD is swept over tolerances too)
+REST_SCENES = ('column', 'mass_ratio', 'dimer_column')
 CD_DT = {
     'incline': [2e-2, 1e-2, 1e-3, 1e-4, 1e-5],
     'column': [3e-2, 1e-2, 1e-3, 1e-4],
@@ -35,6 +38,7 @@ CD_DT = {
     'binary': [1e-2, 3e-3, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
     'projectile': [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
     'cradle': [1e-3, 3e-4, 1e-4, 1e-5, 1e-6],
+    'dimer_column': [3e-2, 1e-2, 1e-3, 1e-4],
 }
 REST_TOL = [1e-2, 1e-4, 1e-6, 1e-8]
 RELAX = 1.5   # the plugin's optional over-relaxation, tried on the rest scenes besides plain GS (1)
@@ -42,7 +46,7 @@ RELAX = 1.5   # the plugin's optional over-relaxation, tried on the rest scenes 
 
 def md_variants(scene, case):
     """(law, damping, en) combinations a user would pick for this scene."""
-    if scene in ('column', 'mass_ratio'):  # quasi-static: Cundall damping, or Hertz's contact damping
+    if scene in REST_SCENES:  # quasi-static: Cundall damping, or Hertz's contact damping
         return [('linear', d, None) for d in (0.2, 0.4, 0.7)] + [('hertz', d, 0.5) for d in (0.0, 0.4)]
     if scene == 'incline':
         return [('linear', 0.0, None), ('hertz', 0.0, 0.5)]
@@ -52,7 +56,7 @@ def md_variants(scene, case):
 
 
 def sim_time(scene, case):
-    return {'incline': 0.2, 'column': {10: 0.5, 40: 0.5}.get(case.get('n'), 1.0), 'mass_ratio': 1.0, 'binary': 0.02,
+    return {'incline': 0.2, 'column': {10: 0.5, 40: 0.5}.get(case.get('n'), 1.0), 'dimer_column': 0.5, 'mass_ratio': 1.0, 'binary': 0.02,
             'projectile': 0.7 / case.get('speed', 1.0), 'cradle': 0.03}[scene]
 
 
@@ -77,7 +81,7 @@ def plan(quick, only=None):
         return runs
     for scene, cases in CASES.items():
         for case in cases:
-            rest = scene in ('column', 'mass_ratio')
+            rest = scene in REST_SCENES
             safeties = SAFETY_160 if case.get('n') == 160 else SAFETY
             for law, damping, en in md_variants(scene, case):
                 grid = [(young, s) for young in YOUNG for s in safeties]
@@ -120,7 +124,7 @@ def key(scene, case, method, p):
 
 
 def case_label(scene, case):
-    return {'incline': lambda: case['regime'], 'column': lambda: 'N=%d' % case['n'],
+    return {'incline': lambda: case['regime'], 'column': lambda: 'N=%d' % case['n'], 'dimer_column': lambda: 'N=%d' % case['n'],
             'mass_ratio': lambda: 'ratio=%g' % case['ratio'], 'binary': lambda: 'e=%g' % case['en'],
             'projectile': lambda: 'v=%g' % case['speed'], 'cradle': lambda: 'n=%d' % case['n']}[scene]()
 
@@ -313,7 +317,7 @@ def boundaries(rs, meth):
 
 def summary_rest(rows, cases):
     lines = []
-    rest = [(s_, c_) for s_, c_ in cases if s_ in ('column', 'mass_ratio')]
+    rest = [(s_, c_) for s_, c_ in cases if s_ in REST_SCENES]
     if rest:
         lines += ['', 'Time to accuracy (rest scenes): wall time until the floor-force error stays below ε, among runs '
                   'whose final error (force and overlap) is ≤ ε.', '',
