@@ -51,7 +51,7 @@ class TestRunState(unittest.TestCase):
     def test_format(self):
         d = self.data
         self.assertEqual(str(d['format']), 'yadecd-runstate')
-        self.assertEqual(int(d['format_version']), 1)
+        self.assertEqual(int(d['format_version']), runstate.FORMAT_VERSION)
         self.assertEqual(str(d['plugin_digest']), runstate.plugin_digest())
         self.assertAlmostEqual(float(d['time']), 0.1, delta=1e-12)
         self.assertEqual(int(d['iter']), 500)
@@ -75,7 +75,7 @@ class TestRunState(unittest.TestCase):
         arrays = dict(self.data)
         arrays['format_version'] = np.array(99)
         np.savez(path, **arrays)
-        with self.assertRaisesRegex(runstate.RunStateError, 'format 99; this plugin reads up to 1'):
+        with self.assertRaisesRegex(runstate.RunStateError, 'format 99; this plugin reads up to %d' % runstate.FORMAT_VERSION):
             runstate.read(path)
 
     def test_mismatched_scene_refused(self):

@@ -104,8 +104,9 @@ def drift_cell(r, limit=3.0):
 
 
 def figure(records, path, fits=None):
-    """μ(I) and φ(I) of every method with error bars (95 %: 2.26 batch-means standard errors),
-    the fitted lines, and the published law of :data:`LITERATURE`; log I axis."""
+    """μ(I) and φ(I) of every method with error bars (95 %: 2.26 batch-means standard errors;
+    open markers for runs whose steady window still drifts), the fitted lines, and the published
+    law of :data:`LITERATURE`; log I axis."""
     from .figures import new_figure, save_figure
     fig = new_figure(9.0, 3.6)
     ax_mu, ax_phi = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
@@ -119,11 +120,11 @@ def figure(records, path, fits=None):
         rs = [r for r in records if r['method'] == method]
         if not rs:
             continue
-        I = np.array([r['I'] for r in rs])
-        ax_mu.errorbar(I, [r['mu'] for r in rs], yerr=[2.26 * r['mu_err'] for r in rs], fmt=marker, color=colour,
-                       label=label, capsize=2, ms=4)
-        ax_phi.errorbar(I, [r['phi'] for r in rs], yerr=[2.26 * r['phi_err'] for r in rs], fmt=marker, color=colour,
-                        label=label, capsize=2, ms=4)
+        for k, r in enumerate(rs):       # open markers: the run's steady window still drifts
+            face = 'none' if 'not steady' in drift_cell(r) else colour
+            for ax, key in ((ax_mu, 'mu'), (ax_phi, 'phi')):
+                ax.errorbar([r['I']], [r[key]], yerr=[2.26 * r[key + '_err']], fmt=marker, color=colour, mfc=face,
+                            label=label if k == 0 else None, capsize=2, ms=4)
         f = (fits or {}).get(method)
         if f and math.isfinite(f['mu_s']):
             ax_mu.plot(grid, f['mu_s'] + f['b'] * grid, '-', color=colour, lw=0.8)
@@ -137,5 +138,6 @@ def figure(records, path, fits=None):
         ax.grid(alpha=0.3)
     ax_mu.legend(fontsize=7, loc='upper left')
     ax_phi.legend(fontsize=7, loc='lower left')
-    fig.suptitle('Periodic simple shear at controlled pressure, frictional spheres (μ_p = 0.5); bars: 95 % batch means', fontsize=9)
+    fig.suptitle('Plane shear between rough walls at imposed pressure (periodic in x, y), frictional spheres (μ_p = 0.5); '
+                 'bars: 95 % batch means; open markers: not steady (drift > 3 standard errors)', fontsize=8)
     return save_figure(fig, path)

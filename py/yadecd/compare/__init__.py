@@ -11,21 +11,20 @@
 :mod:`.examples`   YADE's own example scripts run under CD and as written
 =================  ===========================================================================
 
-The names of :mod:`.run` are reachable from the package (``from yadecd import compare;
-compare.run(...)``), loaded on first use, so that the modules that need no YADE
-(``examples``' list and engine conversion, for the driver scripts) import without it.
+The names of :mod:`.run` are re-exported here (``from yadecd import compare; compare.run(...)``)
+inside YADE; outside it, the package still imports, so that the modules that need no YADE
+(``examples``' list and engine conversion, for the driver scripts) do.
 """
-import importlib
+import importlib.util
 
 
-def __getattr__(name):
-    if name == '__all__':
-        return list(importlib.import_module('.run', __name__).__all__)
-    if name.startswith('__'):
-        raise AttributeError(name)
-    run = importlib.import_module('.run', __name__)
-    if not hasattr(run, name):
-        raise AttributeError("module 'yadecd.compare' has no attribute %r" % name)
-    value = getattr(run, name)
-    globals()[name] = value
-    return value
+def _have_yade():
+    try:
+        return importlib.util.find_spec('yade') is not None
+    except (ImportError, ValueError):
+        return False
+
+
+if _have_yade():
+    from .run import *  # noqa: F401,F403
+    from .run import __all__  # noqa: F401
