@@ -42,7 +42,7 @@ def load_records(directory):
                         phi=s['phi']['mean'], phi_err=s['phi']['sem'], phi_drift=s['phi']['drift_z'],
                         I_drift=s['I'].get('drift_z'),
                         normal_stress=s['normal_stress']['mean'], p=r['p'], sweeps=s.get('sweeps'), n=r['n'],
-                        steps=r['steps'], wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path))
+                        steps=r['steps'], travel=r.get('strain'), skip=s.get('skip_strain'), wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path))
     return sorted(out, key=lambda r: (r['method'], r['I']))
 
 
@@ -82,12 +82,13 @@ def table_markdown(records):
     """One row per run: method, I, μ, φ with their batch-means errors, the wall's mean normal
     stress over the imposed p (1 when the control holds), steps, wall time, and the drift check
     (:func:`drift_cell`)."""
-    lines = ['| method | I (bulk) | μ = τ/p | φ (central half) | wall normal stress / p | steps | time step / t_i | sweeps per step | wall [s] | drift z of μ, φ, I |',
-             '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
+    lines = ['| method | I (bulk) | μ = τ/p | φ (central half) | wall normal stress / p | wall travel / gap (window) | steps | time step / t_i | sweeps per step | wall [s] | drift z of μ, φ, I |',
+             '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for r in records:
-        lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.4f | %d | %s | %s | %.0f |' % (
+        travel = '%g (%g–%g)' % (r['travel'], r['skip'], r['travel']) if r.get('travel') and r.get('skip') is not None else '–'
+        lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.4f | %s | %d | %s | %s | %.0f |' % (
             r['method'].upper(), r['I'], r['I_err'], r['mu'], r['mu_err'], r['phi'], r['phi_err'], r['normal_stress'] / r['p'],
-            r['steps'], '%.3g' % (r['dt'] / r['ti']),
+            travel, r['steps'], '%.3g' % (r['dt'] / r['ti']),
             '%.0f' % r['sweeps'] if r['method'] == 'cd' and r['sweeps'] is not None else '–', r['wall_s'])
             + ' %s |' % drift_cell(r))
     return '\n'.join(lines) + '\n'
