@@ -73,7 +73,8 @@ def _wall(z, side, d, rng, mat):
 
 
 def _parts():
-    """The scene's walls and grains, by their labels (set by :func:`packing`)."""
+    """The scene's walls and grains: the top wall is the clump free along z (blockedDOFs 'xyXYZ', set by
+    :func:`packing`), the bottom wall the other clump, the grains the bodies of no clump."""
     top = [b for b in O.bodies if b.isClump and b.state.blockedDOFs == 'xyXYZ'][0]
     bottom = [b for b in O.bodies if b.isClump and b.id != top.id][0]
     grains = [b for b in O.bodies if not b.isClump and not b.isClumpMember]
