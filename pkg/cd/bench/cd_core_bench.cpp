@@ -10,7 +10,14 @@
 //   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1]
 //                            [--tolerance T] [--time-sweeps 0|1] [--parallel-min-contacts N]
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
-//                            [--history OUT.csv]
+//                            [--history OUT.csv] [--worklist 0|1] [--worklist-threshold ETA]
+//                            [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N]
+//
+// --trace writes where the work of one more solve (the file's step at the options given) goes:
+// PREFIX_change.npy and PREFIX_residual.npy (float32, sweeps × contacts: every contact's update
+// W_NN|Δr| in each sweep, 0 where a worklist sweep skipped it, and its natural-map residual after
+// the sweep, both in m/s), PREFIX_contacts.csv (each contact's point and bodies, in the same
+// order) and PREFIX_meta.json (‖q‖, tolerance, sweeps, contacts).
 //
 // --history writes the residual after every sweep of one more solve (the exact residual evaluated
 // at each sweep, which may stop that solve a sweep or two earlier than the timed one).
@@ -41,10 +48,54 @@ double seconds()
 
 struct StepTimes {
 	double assemble, solve, correct;
-	int    sweeps, correctionSweeps, interface;
-	long   contacts;
+	int    sweeps, correctionSweeps, interface, fullSweeps;
+	long   contacts, updates;
 	double residual;
 };
+
+// A float32 array of the given shape as a NumPy .npy file (format 1.0).
+void writeNpy(const std::string& path, const std::vector<float>& data, long rows, long cols)
+{
+	std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(rows) + ", " + std::to_string(cols) + "), }";
+	while ((10 + header.size() + 1) % 64 != 0)
+		header += ' ';
+	header += '\n';
+	std::ofstream out(path, std::ios::binary);
+	if (!out) throw std::runtime_error("cannot write " + path);
+	out.write("\x93NUMPY\x01\x00", 8);
+	const unsigned short len = (unsigned short)header.size();
+	out.put(char(len & 0xff));
+	out.put(char(len >> 8));
+	out << header;
+	out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(data.size() * sizeof(float)));
+}
+
+// One more solve of the step with the trace on, written as --trace describes.
+void writeTrace(const cd::SavedProblem& pb, cd::Params p, const std::string& prefix)
+{
+	p.traceContacts = true;
+	cd::Solver s;
+	pb.load(s);
+	s.assemble(p);
+	const cd::SolveStats st = s.solve(p);
+	const long           nc = long(s.contacts.size()), ns = st.iterations;
+	writeNpy(prefix + "_change.npy", st.traceChange, ns, nc);
+	writeNpy(prefix + "_residual.npy", st.traceResidual, ns, nc);
+	std::ofstream c(prefix + "_contacts.csv");
+	c << "x,y,z,b1,b2,ref_radius\n";
+	c.precision(9);
+	for (long k = 0; k < nc; ++k) {
+		const cd::ContactInfo& ci = s.contacts.info[k];
+		c << ci.point[0] << ',' << ci.point[1] << ',' << ci.point[2] << ',' << ci.b1 << ',' << ci.b2 << ',' << ci.refR << '\n';
+	}
+	std::ofstream m(prefix + "_meta.json");
+	m.precision(12);
+	m << "{\"q_norm\": " << double(s.qNorm) << ", \"tolerance\": " << double(p.tolerance) << ", \"sweeps\": " << ns << ", \"contacts\": " << nc
+	  << ", \"residual\": " << double(st.residual) << ", \"converged\": " << (st.converged ? "true" : "false") << ", \"worklist\": " << (p.worklist ? "true" : "false")
+	  << ", \"worklist_threshold\": " << double(p.worklistThreshold) << ", \"contact_updates\": " << st.contactUpdates << ", \"full_sweeps\": " << st.fullSweeps
+	  << ", \"up\": [" << p.up[0] << ", " << p.up[1] << ", " << p.up[2] << "]}\n";
+	std::printf("  trace: %ld sweeps x %ld contacts written to %s_*\n", ns, nc, prefix.c_str());
+}
 
 StepTimes runStep(const cd::SavedProblem& pb, const cd::Params& p)
 {
@@ -65,6 +116,8 @@ StepTimes runStep(const cd::SavedProblem& pb, const cd::Params& p)
 	t.solve    = t2 - t1;
 	t.correct  = t3 - t2;
 	t.sweeps   = st.iterations;
+	t.fullSweeps = st.fullSweeps;
+	t.updates  = st.contactUpdates;
 	t.contacts = long(s.contacts.size());
 	return t;
 }
@@ -84,7 +137,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N]\n", what);
 	std::exit(2);
 }
 
@@ -93,7 +146,9 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 int main(int argc, char** argv)
 {
 	if (argc < 2) usage("no problem file given");
-	std::string file = argv[1], csv, history;
+	std::string file = argv[1], csv, history, trace;
+	int         worklist = -1, workFull = -1, maxIter = -1;
+	double      workThreshold = -1;
 	int         k1 = 20, k2 = 120, repeat = 3;
 	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
 	double      tolerance = -1;
@@ -115,6 +170,11 @@ int main(int argc, char** argv)
 		else if (a == "--repeat") repeat = std::stoi(v);
 		else if (a == "--csv") csv = v;
 		else if (a == "--history") history = v;
+		else if (a == "--worklist") worklist = std::stoi(v);
+		else if (a == "--worklist-threshold") workThreshold = std::stod(v);
+		else if (a == "--worklist-full-sweeps") workFull = std::stoi(v);
+		else if (a == "--trace") trace = v;
+		else if (a == "--max-iter") maxIter = std::stoi(v);
 		else usage(("unknown option " + a).c_str());
 	}
 	if (!(k1 >= 1 && k2 > k1 && repeat >= 1)) usage("need 1 ≤ k1 < k2 and repeat ≥ 1");
@@ -128,6 +188,10 @@ int main(int argc, char** argv)
 		if (tolerance > 0) p.tolerance = tolerance;
 		if (corrMomentum >= 0) p.correctionMomentum = corrMomentum;
 		if (parallelMin >= 0) p.parallelMinContacts = parallelMin;
+		if (maxIter > 0) p.maxIter = maxIter;
+		if (worklist >= 0) p.worklist = worklist;
+		if (workThreshold > 0) p.worklistThreshold = workThreshold;
+		if (workFull >= 0) p.worklistFullSweeps = workFull;
 		int threads = 1;
 #ifdef _OPENMP
 		threads = omp_get_max_threads();
@@ -141,8 +205,10 @@ int main(int argc, char** argv)
 		}
 		std::printf("%s: %zu bodies, %ld contacts; schedule %d, slabs %d, momentum %d, sphere kernel %d, %d thread(s)\n", file.c_str(),
 		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, int(p.momentum), int(p.sphereFastPath), threads);
-		std::printf("  step at the file's tolerance %g: %d sweeps (residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
-		            double(p.tolerance), step.sweeps, step.residual, step.correctionSweeps, step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
+		std::printf("  step at the file's tolerance %g: %d sweeps (%d full; %ld contact updates, %.1f sweeps' worth; residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
+		            double(p.tolerance), step.sweeps, step.fullSweeps, step.updates, double(step.updates) / double(std::max(step.contacts, 1L)), step.residual, step.correctionSweeps,
+		            step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
+		if (p.worklist) std::printf("  worklist: threshold %g x tolerance x |q| / sqrt(contacts), %d full sweeps first\n", double(p.worklistThreshold), p.worklistFullSweeps);
 		if (timeSweeps) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
 		if (!history.empty()) {
 			cd::Params q     = p;
@@ -157,15 +223,17 @@ int main(int argc, char** argv)
 				out << (i + 1) * q.checkEvery << ',' << double(st.residualHistory[i]) << '\n';
 			std::printf("  residual history: %zu sweeps written to %s\n", st.residualHistory.size(), history.c_str());
 		}
+		if (!trace.empty()) writeTrace(pb, p, trace);
 		if (!csv.empty()) {
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();
 			std::ofstream out(csv, std::ios::app);
-			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep\n";
+			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
 			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
-			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << '\n';
+			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << ',' << int(p.worklist) << ',' << double(p.worklistThreshold) << ','
+			    << step.fullSweeps << ',' << step.updates << '\n';
 		}
 	} catch (const std::exception& e) {
 		std::fprintf(stderr, "cd_core_bench: %s\n", e.what());

@@ -134,6 +134,15 @@ namespace cd {
 		int      maxProjectionIter = 200;
 		bool     correctionMomentum = false; // Nesterov's momentum in the position correction too (opt-in: see the integrator's attribute)
 		long     parallelMinContacts = 10000; // fewer contacts: the per-sweep stages run on the calling thread (same results; not a problem option, not in problem files)
+		// Sweeps that follow the work (Solver.cpp, "worklist"): after worklistFullSweeps full
+		// sweeps, a sweep visits only the contacts one of whose bodies an update changed
+		// significantly in the sweep before or earlier in this one; a quiet partial sweep is
+		// followed by a full one, and only a full sweep is followed by the exact residual test.
+		// Significant: W_NN|Δr| > worklistThreshold · tolerance · ‖q‖ / √(contacts).
+		bool     worklist = false;
+		Real     worklistThreshold = 1;
+		int      worklistFullSweeps = 1;
+		bool     traceContacts = false; // diagnostics: SolveStats::traceChange/traceResidual (a residual pass per sweep; the solve itself is unchanged, bit for bit)
 	};
 
 	/*! What a solve reports (copied to the integrator's read-only attributes by the host). */
@@ -143,7 +152,13 @@ namespace cd {
 		bool              converged = true;
 		int               nSticking = 0, nSliding = 0, nStatusChanges = 0;
 		int               nInterface = 0, nColours = 0;
+		long              contactUpdates = 0;  // local updates made (sweeps × contacts without the worklist)
+		int               fullSweeps = 0;      // sweeps over every contact (all of them without the worklist)
 		std::vector<Real> residualHistory;
+		// Params::traceContacts: per sweep s and contact k (the schedule's order, ContactSet after
+		// the solve), at index s·contacts + k: W_NN|Δr| of the sweep's update (0: not visited) and
+		// the contact's natural-map residual after the sweep, both in velocity units [m/s]
+		std::vector<float> traceChange, traceResidual;
 	};
 
 	/*! What the position correction reports. */

@@ -231,49 +231,98 @@ namespace cd {
 		return dr.squaredNorm() * c.W(0, 0) * c.W(0, 0);
 	}
 
-	// Contacts [begin, end) updated in turn: returns Σ(W_NN|Δr|)², adds status changes to nChanged.
-	template <bool Relaxed> CD_HOT Real Solver::sweepRange(long begin, long end, Real omega, int& nChanged)
+	// Contacts [begin, end) updated in turn: returns Σ(W_NN|Δr|)², adds status changes to nChanged
+	// and the updates made to updates. Mode (SweepMode): Partial skips a contact unless one of its
+	// bodies was stamped in the sweep before or earlier in this one (an update of a contact whose
+	// bodies did not move since its last update would give back its own impulse, up to the
+	// threshold); Marking and Partial stamp the dynamic bodies of a significant update (a parallel
+	// stage's ranges share none, so the stamps are the same for any thread count). PerContact:
+	// every contact's change is kept for schedules that sum contact by contact, and for the trace.
+	template <bool Relaxed, int Mode, bool PerContact> CD_HOT Real Solver::sweepRange(long begin, long end, Real omega, int& nChanged, long& updates)
 	{
-		Real change = 0;
+		Real      change = 0;
+		const int t      = sweepIndex;
+		const int nb     = int(bodies.size());
 		for (long k = begin; k < end; ++k) {
-			bool changed;
-			change += updateContact<Relaxed>(k, omega, changed);
+			if constexpr (Mode == Partial) {
+				if (stamp[stampSlot[2 * k]] < t - 1 && stamp[stampSlot[2 * k + 1]] < t - 1) {
+					if constexpr (PerContact) contactChange[k] = 0;
+					continue;
+				}
+				++updates;
+			}
+			bool       changed;
+			const Real c = updateContact<Relaxed>(k, omega, changed);
+			if constexpr (PerContact) contactChange[k] = c;
+			change += c;
 			nChanged += changed;
+			if constexpr (Mode != Full) {
+				if (c > workThreshold2) {
+					if (stampSlot[2 * k] != nb) stamp[stampSlot[2 * k]] = t;
+					if (stampSlot[2 * k + 1] != nb) stamp[stampSlot[2 * k + 1]] = t;
+				}
+			}
 		}
+		if constexpr (Mode != Partial) updates += end - begin;
 		return change;
 	}
 
 	// One sweep in the schedule's order. Every range's sum (or every contact's change, for
 	// schedules that sum contact by contact) is stored and the sums added in order afterwards:
-	// the result, bit for bit, does not depend on the number of threads.
-	template <bool Relaxed> Real Solver::sweep(Real omega, int& nChanged)
+	// the result, bit for bit, does not depend on the number of threads (nor on the trace: a
+	// range's sum is the same whether or not its contacts' changes are also stored).
+	template <bool Relaxed, int Mode, bool PerContact> Real Solver::sweepAll(Real omega, int& nChanged, long& updates)
 	{
+		order.run([&](int i, long begin, long end) {
+			int  n = 0;
+			long u = 0;
+			rangeChange[i]  = sweepRange<Relaxed, Mode, PerContact>(begin, end, omega, n, u);
+			rangeStatus[i]  = n;
+			rangeUpdates[i] = u;
+		});
 		Real change = 0;
 		nChanged    = 0;
-		if (order.sumPerContact) {
-			order.run([&](int, long begin, long end) {
-				for (long k = begin; k < end; ++k) {
-					bool changed;
-					contactChange[k] = updateContact<Relaxed>(k, omega, changed);
-					contactStatus[k] = changed;
-				}
-			});
-			for (size_t k = 0; k < contacts.size(); ++k) {
-				change += contactChange[k];
-				nChanged += contactStatus[k];
-			}
-			return change;
-		}
-		order.run([&](int i, long begin, long end) {
-			int n          = 0;
-			rangeChange[i] = sweepRange<Relaxed>(begin, end, omega, n);
-			rangeStatus[i] = n;
-		});
+		updates     = 0;
 		for (int i = 0; i < order.ranges(); ++i) {
-			change += rangeChange[i];
 			nChanged += rangeStatus[i];
+			updates += rangeUpdates[i];
 		}
+		if (order.sumPerContact)
+			for (size_t k = 0; k < contacts.size(); ++k)
+				change += contactChange[k];
+		else
+			for (int i = 0; i < order.ranges(); ++i)
+				change += rangeChange[i];
 		return change;
+	}
+
+	template <bool Relaxed> Real Solver::sweep(Real omega, int mode, bool perContact, int& nChanged, long& updates)
+	{
+		switch (2 * mode + int(perContact)) {
+			case 2 * Full: return sweepAll<Relaxed, Full, false>(omega, nChanged, updates);
+			case 2 * Full + 1: return sweepAll<Relaxed, Full, true>(omega, nChanged, updates);
+			case 2 * Marking: return sweepAll<Relaxed, Marking, false>(omega, nChanged, updates);
+			case 2 * Marking + 1: return sweepAll<Relaxed, Marking, true>(omega, nChanged, updates);
+			case 2 * Partial: return sweepAll<Relaxed, Partial, false>(omega, nChanged, updates);
+			default: return sweepAll<Relaxed, Partial, true>(omega, nChanged, updates);
+		}
+	}
+
+	// The worklist's state for one solve: every body unstamped, each contact's two stamp slots
+	// (in the schedule's order), and the threshold (W_NN|Δr|)² of a significant update.
+	void Solver::startWorklist(const Params& p, Real scale)
+	{
+		const long nc = long(contacts.size());
+		const int  nb = int(bodies.size());
+		stamp.assign(nb + 1, std::numeric_limits<int>::min() / 2);
+		stampSlot.resize(2 * nc);
+		for (long k = 0; k < nc; ++k) {
+			const ContactInfo& c = contacts.info[k];
+			stampSlot[2 * k]     = records[c.b1].dynamic ? c.b1 : nb;
+			stampSlot[2 * k + 1] = records[c.b2].dynamic ? c.b2 : nb;
+		}
+		const Real theta = p.worklistThreshold * p.tolerance * scale / math::sqrt(Real(nc));
+		workThreshold2   = theta * theta;
 	}
 
 	// ------------------------------------------------------------------------- stage 6: the solve
@@ -285,23 +334,42 @@ namespace cd {
 		Real sum        = 0;
 		stats.nSticking = stats.nSliding = 0;
 		for (size_t k = 0; k < contacts.size(); ++k) {
-			Vector3r Ulaw;
-			Real     rho;
-			if (contacts.state[k].kernel < 0) {
-				const SphereRow& c = contacts.sphere[k];
-				Ulaw               = c.A.cwiseProduct(sphereVelocity(c)) + c.bias;
-				rho                = 1 / c.Wd[0];
-			} else {
-				const ContactInfo& c = contacts.info[k];
-				Ulaw                 = c.A.cwiseProduct(localVelocity(long(k)) + c.s);
-				rho                  = 1 / contacts.general[contacts.state[k].kernel].Wlaw(0, 0);
-			}
-			sum += naturalMapResidual(contacts.state[k].r, Ulaw, contacts.state[k].mu, rho).squaredNorm();
+			sum += contactResidual2(long(k));
 			if (contacts.state[k].status == int(ContactStatus::Sticking)) ++stats.nSticking;
 			if (contacts.state[k].status == int(ContactStatus::Sliding)) ++stats.nSliding;
 		}
 		const Real scale = qNorm > 0 ? qNorm : Real(1);
 		return math::sqrt(sum) / scale;
+	}
+
+	// |e_k|², contact k's natural-map residual in velocity units, squared.
+	Real Solver::contactResidual2(long k) const
+	{
+		Vector3r Ulaw;
+		Real     rho;
+		if (contacts.state[k].kernel < 0) {
+			const SphereRow& c = contacts.sphere[k];
+			Ulaw               = c.A.cwiseProduct(sphereVelocity(c)) + c.bias;
+			rho                = 1 / c.Wd[0];
+		} else {
+			const ContactInfo& c = contacts.info[k];
+			Ulaw                 = c.A.cwiseProduct(localVelocity(k) + c.s);
+			rho                  = 1 / contacts.general[contacts.state[k].kernel].Wlaw(0, 0);
+		}
+		return naturalMapResidual(contacts.state[k].r, Ulaw, contacts.state[k].mu, rho).squaredNorm();
+	}
+
+	// The trace of the sweep just made (Params::traceContacts): every contact's change, from the
+	// per-contact changes the sweep kept, and its residual now.
+	void Solver::recordTrace(SolveStats& stats) const
+	{
+		const size_t nc = contacts.size(), at = stats.traceChange.size();
+		stats.traceChange.resize(at + nc);
+		stats.traceResidual.resize(at + nc);
+		for (size_t k = 0; k < nc; ++k) {
+			stats.traceChange[at + k]   = float(math::sqrt(contactChange[k]));
+			stats.traceResidual[at + k] = float(math::sqrt(contactResidual2(long(k))));
+		}
 	}
 
 	// Nonlinear Gauss–Seidel over contacts, accelerated by Nesterov's momentum with adaptive
@@ -329,23 +397,37 @@ namespace cd {
 		stats.nInterface = order.nInterface;
 		rangeChange.assign(order.ranges(), 0);
 		rangeStatus.assign(order.ranges(), 0);
-		if (order.sumPerContact) {
-			contactChange.assign(contacts.size(), 0);
-			contactStatus.assign(contacts.size(), 0);
-		}
+		rangeUpdates.assign(order.ranges(), 0);
+		const bool perContact = order.sumPerContact || p.traceContacts;
+		if (perContact) contactChange.assign(contacts.size(), 0);
+		if (p.worklist) startWorklist(p, scale);
 		if (p.momentum) startMomentum();
 		// Momentum restarts when a sweep changes the velocities more than restartGrowth times the
 		// sweep before. 1.2 rather than 1 lets momentum ride through small bumps (measured on pile
 		// steps: 109 and 178 sweeps against 313 and 234 with 1); the stall guard below falls back to 1.
 		Real       tNesterov = 1, lastChange = std::numeric_limits<Real>::infinity(), restartGrowth = 1.2;
 		const bool relaxed   = p.relaxation != 1;
+		bool       fullNext  = true; // worklist: the next sweep visits every contact
 		for (int it = 1; it <= p.maxIter; ++it) {
+			sweepIndex        = it;
+			const bool called = p.worklist && fullNext && it > 1; // a full sweep after a quiet partial one
+			const bool full   = !p.worklist || fullNext || it <= p.worklistFullSweeps;
+			const int  mode = !p.worklist ? Full : full ? Marking : Partial;
+			long       updates;
 			// Σ (W_NN |Δr|)²: the velocity changes this sweep made
-			const Real change = relaxed ? sweep<true>(omega, stats.nStatusChanges) : sweep<false>(omega, stats.nStatusChanges);
+			const Real change = relaxed ? sweep<true>(omega, mode, perContact, stats.nStatusChanges, updates)
+			                            : sweep<false>(omega, mode, perContact, stats.nStatusChanges, updates);
 			stats.iterations  = it;
+			stats.contactUpdates += updates;
+			stats.fullSweeps += full;
+			if (p.traceContacts) recordTrace(stats);
 			// The exact residual costs about a sweep: evaluate it only once the sweep's own changes
 			// are below the tolerance (a converged state barely changes), or when asked to record.
+			// With the worklist a quiet partial sweep only calls for a full sweep: the contacts it
+			// skipped may have drifted (each by less than the threshold), so only a full sweep may
+			// be followed by the test that ends the solve.
 			const bool quiet = math::sqrt(change) <= p.tolerance * scale;
+			fullNext         = !full && quiet;
 			// Over-relaxation and a lenient momentum restart are not safe with friction: once the
 			// sweeps stop contracting (the smallest change so far not improved by 1% for 50 sweeps),
 			// finish the step with ω = 1 and momentum restarted at every growth.
@@ -357,7 +439,7 @@ namespace cd {
 				restartGrowth = 1;
 				tNesterov     = 1;
 			}
-			if (it == p.maxIter || ((quiet || p.recordResidual) && it % p.checkEvery == 0)) {
+			if (it == p.maxIter || (((quiet && full) || p.recordResidual) && it % p.checkEvery == 0)) {
 				stats.residual = residual(stats);
 				if (p.recordResidual) stats.residualHistory.push_back(stats.residual);
 				if (stats.residual <= p.tolerance) {
@@ -365,6 +447,10 @@ namespace cd {
 					break;
 				}
 			}
+			// A full sweep called by a quiet partial one that did not end the solve: what is left
+			// is spread over contacts whose updates are each below the threshold, which partial
+			// sweeps never visit; halve the threshold so that they take part.
+			if (called && it > p.worklistFullSweeps) workThreshold2 *= 0.25;
 			if (p.momentum && it < p.maxIter) {
 				// adaptive restart: a sweep that changed clearly more than the one before ends the momentum
 				if (change > restartGrowth * lastChange) tNesterov = 1;

@@ -47,8 +47,18 @@ namespace cd {
 		std::vector<Real>     rangeChange;  // per range, the sweep's Σ(W_NN|Δr|)²
 		std::vector<int>      rangeStatus;  // per range, status changes
 		std::vector<Real>     contactChange; // per contact, the sweep's (W_NN|Δr|)² (schedules summing per contact)
-		std::vector<char>     contactStatus; // per contact, whether its status changed
+		std::vector<long>     rangeUpdates; // per range, the sweep's local updates
 		std::vector<Real>     qShare;       // per contact, its share of ‖q‖²
+		// the worklist (Params::worklist): per contact its two bodies' stamp slots (the body id, or
+		// the never-written slot bodies.size() for an obstacle); per slot the last sweep in which an
+		// update changed that body significantly, (W_NN|Δr|)² > workThreshold2
+		std::vector<int>      stampSlot;
+		std::vector<int>      stamp;
+		Real                  workThreshold2 = 0;
+		int                   sweepIndex     = 0;
+		/*! How a sweep visits the contacts: all of them (Full), all of them stamping the bodies of
+		 *  significant updates (Marking), or only those a stamp makes active (Partial). */
+		enum SweepMode { Full = 0, Marking = 1, Partial = 2 };
 		std::vector<Vector3r> rPrev;        // momentum: impulses after the previous sweep
 		std::vector<Vector3r> vPrev, wPrev; // momentum: body velocities after the previous sweep
 
@@ -74,8 +84,12 @@ namespace cd {
 		void     applyImpulse(const ContactInfo& c, const Vector3r& dr);
 		template <bool Relaxed> Real updateContact(long k, Real omega, bool& changed);
 		template <bool Relaxed> Real updateGeneral(long k, Real omega, bool& changed);
-		template <bool Relaxed> Real sweepRange(long begin, long end, Real omega, int& nChanged);
-		template <bool Relaxed> Real sweep(Real omega, int& nChanged);
+		template <bool Relaxed, int Mode, bool PerContact> Real sweepRange(long begin, long end, Real omega, int& nChanged, long& updates);
+		template <bool Relaxed, int Mode, bool PerContact> Real sweepAll(Real omega, int& nChanged, long& updates);
+		template <bool Relaxed> Real sweep(Real omega, int mode, bool perContact, int& nChanged, long& updates);
+		void     startWorklist(const Params& p, Real scale);
+		void     recordTrace(SolveStats& stats) const;
+		Real     contactResidual2(long k) const;
 		void     startMomentum();
 		void     extrapolate(Real beta);
 		void     extrapolateRange(long begin, long end, Real beta);
