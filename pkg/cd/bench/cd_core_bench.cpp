@@ -12,6 +12,7 @@
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
 //                            [--history OUT.csv] [--worklist 0|1] [--worklist-threshold ETA]
 //                            [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N]
+//                            [--bodies-in-sweep-order 0|1]
 //
 // --trace writes where the work of one more solve (the file's step at the options given) goes:
 // PREFIX_change.npy and PREFIX_residual.npy (float32, sweeps × contacts: every contact's update
@@ -137,7 +138,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1]\n", what);
 	std::exit(2);
 }
 
@@ -147,7 +148,7 @@ int main(int argc, char** argv)
 {
 	if (argc < 2) usage("no problem file given");
 	std::string file = argv[1], csv, history, trace;
-	int         worklist = -1, workFull = -1, maxIter = -1;
+	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1;
 	double      workThreshold = -1;
 	int         k1 = 20, k2 = 120, repeat = 3;
 	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
@@ -175,6 +176,7 @@ int main(int argc, char** argv)
 		else if (a == "--worklist-full-sweeps") workFull = std::stoi(v);
 		else if (a == "--trace") trace = v;
 		else if (a == "--max-iter") maxIter = std::stoi(v);
+		else if (a == "--bodies-in-sweep-order") bodyOrder = std::stoi(v);
 		else usage(("unknown option " + a).c_str());
 	}
 	if (!(k1 >= 1 && k2 > k1 && repeat >= 1)) usage("need 1 ≤ k1 < k2 and repeat ≥ 1");
@@ -189,6 +191,7 @@ int main(int argc, char** argv)
 		if (corrMomentum >= 0) p.correctionMomentum = corrMomentum;
 		if (parallelMin >= 0) p.parallelMinContacts = parallelMin;
 		if (maxIter > 0) p.maxIter = maxIter;
+		if (bodyOrder >= 0) p.bodiesInSweepOrder = bodyOrder;
 		if (worklist >= 0) p.worklist = worklist;
 		if (workThreshold > 0) p.worklistThreshold = workThreshold;
 		if (workFull >= 0) p.worklistFullSweeps = workFull;
@@ -228,12 +231,12 @@ int main(int argc, char** argv)
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();
 			std::ofstream out(csv, std::ios::app);
-			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates\n";
+			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
 			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
 			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << ',' << int(p.worklist) << ',' << double(p.worklistThreshold) << ','
-			    << step.fullSweeps << ',' << step.updates << '\n';
+			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << '\n';
 		}
 	} catch (const std::exception& e) {
 		std::fprintf(stderr, "cd_core_bench: %s\n", e.what());

@@ -142,6 +142,7 @@ namespace cd {
 		bool     worklist = false;
 		Real     worklistThreshold = 1;
 		int      worklistFullSweeps = 1;
+		bool     bodiesInSweepOrder = true; // the solve and the correction store the bodies in the order the sweep first meets them (the same results, bit for bit; false: by id, for benchmarks)
 		bool     traceContacts = false; // diagnostics: SolveStats::traceChange/traceResidual (a residual pass per sweep; the solve itself is unchanged, bit for bit)
 	};
 

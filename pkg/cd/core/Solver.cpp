@@ -400,6 +400,7 @@ namespace cd {
 		rangeUpdates.assign(order.ranges(), 0);
 		const bool perContact = order.sumPerContact || p.traceContacts;
 		if (perContact) contactChange.assign(contacts.size(), 0);
+		if (p.bodiesInSweepOrder) renumberBodies();
 		if (p.worklist) startWorklist(p, scale);
 		if (p.momentum) startMomentum();
 		// Momentum restarts when a sweep changes the velocities more than restartGrowth times the
@@ -460,6 +461,7 @@ namespace cd {
 				tNesterov = next;
 			}
 		}
+		restoreBodyIds();
 		return stats;
 	}
 
@@ -623,6 +625,7 @@ namespace cd {
 			stats.maxOverlap       = math::max(stats.maxOverlap, row.overlap);
 		}
 		if (stats.maxOverlap <= p.positionTolerance) return stats;
+		if (p.bodiesInSweepOrder) renumberBodies();
 		for (long k = 0; k < nc; ++k) {
 			const ContactInfo& c   = contacts.info[k];
 			CorrectionRow&     row = corrections[k];
@@ -668,7 +671,64 @@ namespace cd {
 		}
 		for (size_t b = 0; b < bodies.size(); ++b)
 			records[b].pv = pseudoV[b];
+		restoreBodyIds();
 		return stats;
+	}
+
+	// ------------------------------------------------------------------------- bodies in sweep order
+
+	// A sweep reads and writes the two bodies of each contact in the schedule's order; stored by
+	// id (creation order, unrelated to where grains lie in a pile) they are scattered over memory.
+	// For a solve or a correction the bodies and their records are stored in the order in which
+	// the sweep first meets them (bodies of no contact after), and the contacts' body ids point
+	// there; restoreBodyIds puts everything back. The arithmetic is untouched: the same results,
+	// bit for bit.
+	void Solver::renumberBodies()
+	{
+		const int nb = int(bodies.size());
+		slotOfBody.assign(nb, -1);
+		bodyOfSlot.clear();
+		bodyOfSlot.reserve(nb);
+		const auto place = [&](int id) {
+			if (slotOfBody[id] < 0) slotOfBody[id] = int(bodyOfSlot.size()), bodyOfSlot.push_back(id);
+		};
+		for (size_t k = 0; k < contacts.size(); ++k)
+			place(contacts.info[k].b1), place(contacts.info[k].b2);
+		for (int id = 0; id < nb; ++id)
+			place(id);
+		permuteBodies(bodyOfSlot);
+		for (size_t k = 0; k < contacts.size(); ++k) {
+			ContactInfo& c = contacts.info[k];
+			c.b1 = slotOfBody[c.b1], c.b2 = slotOfBody[c.b2];
+			if (contacts.state[k].kernel < 0) contacts.sphere[k].b1 = c.b1, contacts.sphere[k].b2 = c.b2;
+		}
+		renumbered = true;
+	}
+
+	void Solver::restoreBodyIds()
+	{
+		if (!renumbered) return;
+		std::vector<int> back(bodies.size()); // slot of each id, as the permutation's source list
+		for (size_t id = 0; id < bodies.size(); ++id)
+			back[id] = slotOfBody[id];
+		permuteBodies(back);
+		for (size_t k = 0; k < contacts.size(); ++k) {
+			ContactInfo& c = contacts.info[k];
+			c.b1 = bodyOfSlot[c.b1], c.b2 = bodyOfSlot[c.b2];
+			if (contacts.state[k].kernel < 0) contacts.sphere[k].b1 = c.b1, contacts.sphere[k].b2 = c.b2;
+		}
+		renumbered = false;
+	}
+
+	// bodies[i] ← bodies[from[i]], the same for records.
+	void Solver::permuteBodies(const std::vector<int>& from)
+	{
+		std::vector<Body>       b(bodies.size());
+		std::vector<BodyRecord> r(records.size());
+		for (size_t i = 0; i < from.size(); ++i)
+			b[i] = bodies[from[i]], r[i] = records[from[i]];
+		bodies.swap(b);
+		records.swap(r);
 	}
 
 	// ------------------------------------------------------------------------- export

@@ -88,6 +88,13 @@ namespace cd {
 		template <bool Relaxed, int Mode, bool PerContact> Real sweepAll(Real omega, int& nChanged, long& updates);
 		template <bool Relaxed> Real sweep(Real omega, int mode, bool perContact, int& nChanged, long& updates);
 		void     startWorklist(const Params& p, Real scale);
+		// Params::bodiesInSweepOrder: slot[id] is the body's place while a solve or a correction
+		// runs (bodies, records and the contacts' body ids renumbered), ids[slot] its id
+		std::vector<int> slotOfBody, bodyOfSlot;
+		bool             renumbered = false;
+		void             renumberBodies();
+		void             restoreBodyIds();
+		void             permuteBodies(const std::vector<int>& from);
 		void     recordTrace(SolveStats& stats) const;
 		Real     contactResidual2(long k) const;
 		void     startMomentum();
