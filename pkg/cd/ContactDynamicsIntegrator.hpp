@@ -160,7 +160,7 @@ public:
 		((int, nStatusChanges, 0, Attr::readonly, "Contacts whose status changed during the last sweep of the last step. |yupdate|"))
 		((int, projectionIterations, 0, Attr::readonly, "Sweeps of the position correction in the last step (0: nothing to correct). |yupdate|"))
 		((Real, maxCorrectedOverlap, 0, Attr::readonly, "Largest overlap the last step created before correction, relative to the reference radius [-]. |yupdate|"))
-		((int, nInterface, 0, (Attr::readonly | Attr::noSave), "Contacts of the last step's 'slabs' sweep in the sequential interface between slabs. |yupdate|"))
+		((int, nInterface, 0, (Attr::readonly | Attr::noSave), "Contacts of the last step's 'slabs' sweep that do not lie inside one slab, swept after the slabs: cut by cut (the even cuts at once, then the odd ones), and those spanning more than two slabs by one thread (with two slabs: one cut, swept by one thread). |yupdate|"))
 		((int, nColours, 0, (Attr::readonly | Attr::noSave), "Colours of the last step's 'colours' sweep (65 means some contacts fell in the sequential overflow group). |yupdate|"))
 		((vector<Real>, residualHistory, , Attr::readonly, "Residual after each checked sweep of the last step, if :yref:`recordResidual<ContactDynamicsIntegrator.recordResidual>`. |yupdate|"))
 		((string, problemFile, "", Attr::noSave, "Write the next step's problem (the solver core's input at stage 5: bodies with their free velocities, contacts with frames, gaps and warm starts, and the options) to this file, then clear the attribute. The core tests and ``cd_core_bench`` solve such files without YADE (format: pkg/cd/core/ProblemFile.hpp)."))

@@ -276,9 +276,10 @@ void correctionCheck(const std::string& name, const cd::SavedProblem& pb)
 // slabs), with momentum in the solve and in the correction.
 void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 {
-	for (int variant : { 4, 5, 15 }) { // 15: slabs with the worklist
+	for (int variant : { 4, 5, 15, 25 }) { // 15: slabs with the worklist; 25: eight slabs (the cuts' parallel stages)
 		const int  schedule = variant % 10;
-		const bool worklist = variant >= 10;
+		const bool worklist = variant / 10 == 1;
+		const int  slabs    = variant / 10 == 2 ? 8 : pb.params.slabs;
 		std::vector<std::vector<Vector3r>> v, pv;
 		std::vector<std::map<Pair, Vector3r>> P;
 		std::vector<int> sweeps, corr;
@@ -286,6 +287,7 @@ void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 			cd::Params p          = pb.params;
 			p.schedule            = schedule;
 			p.worklist            = worklist;
+			p.slabs               = slabs;
 			p.correctionMomentum  = true;
 			p.parallelMinContacts = minContacts;
 			cd::Solver s;
@@ -304,7 +306,7 @@ void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 			pv.push_back(pvb);
 		}
 		check(sweeps[0] == sweeps[1] && corr[0] == corr[1] && P[0] == P[1] && v[0] == v[1] && pv[0] == pv[1],
-		      name + " [schedule " + std::to_string(schedule) + (worklist ? ", worklist" : "") + "]: threaded and serial sweeps give the same step, bit for bit (" +
+		      name + " [schedule " + std::to_string(schedule) + (worklist ? ", worklist" : "") + (variant / 10 == 2 ? ", 8 slabs" : "") + "]: threaded and serial sweeps give the same step, bit for bit (" +
 		              std::to_string(sweeps[0]) + " sweeps)");
 	}
 }

@@ -49,7 +49,8 @@ double seconds()
 
 struct StepTimes {
 	double assemble, solve, correct;
-	int    sweeps, correctionSweeps, interface, fullSweeps;
+	int    sweeps, correctionSweeps, interface, fullSweeps, serial;
+	std::string stages; // the schedule: per stage, its ranges' contact counts ('|' between stages, ' ' between ranges)
 	long   contacts, updates;
 	double residual;
 };
@@ -112,6 +113,13 @@ StepTimes runStep(const cd::SavedProblem& pb, const cd::Params& p)
 	double                    t3 = seconds();
 	t.correctionSweeps           = cs.iterations;
 	t.interface                  = st.nInterface;
+	t.serial                     = st.nSerial;
+	const cd::Schedule& o        = s.schedule();
+	for (const auto& stage : o.stages) {
+		if (!t.stages.empty()) t.stages += '|';
+		for (int i = stage.begin; i < stage.end; ++i)
+			t.stages += (i > stage.begin ? " " : "") + std::to_string(o.bounds[i + 1] - o.bounds[i]);
+	}
 	t.residual                   = double(st.residual);
 	t.assemble = t1 - t0;
 	t.solve    = t2 - t1;
@@ -211,6 +219,7 @@ int main(int argc, char** argv)
 		std::printf("  step at the file's tolerance %g: %d sweeps (%d full; %ld contact updates, %.1f sweeps' worth; residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
 		            double(p.tolerance), step.sweeps, step.fullSweeps, step.updates, double(step.updates) / double(std::max(step.contacts, 1L)), step.residual, step.correctionSweeps,
 		            step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
+		std::printf("  schedule: %s (%d interface contacts, %d of them serial)\n", step.stages.c_str(), step.interface, step.serial);
 		if (p.worklist) std::printf("  worklist: threshold %g x tolerance x |q| / sqrt(contacts), %d full sweeps first\n", double(p.worklistThreshold), p.worklistFullSweeps);
 		if (timeSweeps) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
 		if (!history.empty()) {
@@ -231,12 +240,12 @@ int main(int argc, char** argv)
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();
 			std::ofstream out(csv, std::ios::app);
-			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order\n";
+			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,serial,stages\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
 			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
 			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << ',' << int(p.worklist) << ',' << double(p.worklistThreshold) << ','
-			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << '\n';
+			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.serial << ',' << step.stages << '\n';
 		}
 	} catch (const std::exception& e) {
 		std::fprintf(stderr, "cd_core_bench: %s\n", e.what());

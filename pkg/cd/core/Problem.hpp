@@ -152,7 +152,7 @@ namespace cd {
 		Real              residual = 0;
 		bool              converged = true;
 		int               nSticking = 0, nSliding = 0, nStatusChanges = 0;
-		int               nInterface = 0, nColours = 0;
+		int               nInterface = 0, nColours = 0, nSerial = 0;
 		long              contactUpdates = 0;  // local updates made (sweeps × contacts without the worklist)
 		int               fullSweeps = 0;      // sweeps over every contact (all of them without the worklist)
 		std::vector<Real> residualHistory;

@@ -12,7 +12,7 @@ namespace cd {
 
 	void Schedule::build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up)
 	{
-		nColours = nInterface = 0;
+		nColours = nInterface = nSerial = 0;
 		sumPerContact         = false;
 		switch (kind) {
 			case Height: byHeight(long(set.size())); break;
@@ -84,7 +84,12 @@ namespace cd {
 	// contact counts. A contact is inner when each of its dynamic bodies has all its contacts in
 	// the contact's slab; inner contacts of different slabs then share no body and their slabs
 	// can be swept at the same time. The rest (contacts of bodies that straddle a cut) form the
-	// interface, swept after the slabs. Height order is kept within every group.
+	// interface, swept after the slabs: the contacts whose bodies have all their contacts in the
+	// two slabs beside one cut belong to that cut, and cuts two apart share no body, so the even
+	// cuts are swept at the same time, then the odd ones; what spans more than two slabs (bodies
+	// wider than a slab) is swept last by one thread. Height order is kept within every group.
+	// With two slabs there is one cut and nothing spans more: the order is the same as with a
+	// single serial interface.
 	void Schedule::slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up)
 	{
 		if (ns < 1 || ns > 64) throw std::invalid_argument("cd::Schedule: slabs=" + std::to_string(ns) + " must lie in 1..64.");
@@ -115,24 +120,34 @@ namespace cd {
 			if (records[b1].dynamic) touched[b1] |= uint64_t(1) << group[k];
 			if (records[b2].dynamic) touched[b2] |= uint64_t(1) << group[k];
 		}
-		std::vector<long> count(ns + 1, 0);
+		// groups: slabs 0..ns−1 (inner), then the cuts, even ones first (cut c lies between
+		// slabs c and c+1), then the serial rest: consecutive, so that each stage's ranges are
+		const int         nGroups = 2 * ns, nCuts = ns - 1, nEven = (nCuts + 1) / 2;
+		auto              cutGroup = [&](int c) { return ns + (c % 2 == 0 ? c / 2 : nEven + c / 2); };
+		std::vector<long> count(nGroups, 0);
 		for (long k = 0; k < nc; ++k) {
 			const uint64_t own = uint64_t(1) << group[k];
 			const int      b1 = set.info[k].b1, b2 = set.info[k].b2;
-			if ((records[b1].dynamic && touched[b1] != own) || (records[b2].dynamic && touched[b2] != own)) group[k] = ns;
+			const uint64_t span = own | (records[b1].dynamic ? touched[b1] : 0) | (records[b2].dynamic ? touched[b2] : 0);
+			if (span != own) {
+				const int lo = __builtin_ctzll(span);
+				group[k]     = (span >> lo) == 3 ? cutGroup(lo) : nGroups - 1; // exactly slabs lo and lo+1: that cut's
+			}
 			++count[group[k]];
 		}
-		bounds.assign(ns + 2, 0);
-		for (int g = 0; g <= ns; ++g)
+		bounds.assign(nGroups + 1, 0);
+		for (int g = 0; g < nGroups; ++g)
 			bounds[g + 1] = bounds[g] + count[g];
 		std::vector<long> next(bounds.begin(), bounds.end() - 1), order(nc);
 		for (long k = 0; k < nc; ++k)
 			order[next[group[k]]++] = k;
 		set.permute(order);
-		nInterface = int(count[ns]);
-		// the slabs in parallel when there are several and enough inner contacts to pay for a
-		// parallel region; then the interface by one thread
-		stages = { Stage { 0, ns, ns > 1 && bounds[ns] >= 256 }, Stage { ns, ns + 1, false } };
+		nInterface = int(nc - bounds[ns]);
+		nSerial    = int(count[nGroups - 1]);
+		// a stage runs in parallel when it has several ranges and enough contacts to pay for a
+		// parallel region
+		auto stage = [&](int first, int last) { return Stage { first, last, last - first > 1 && bounds[last] - bounds[first] >= 256 }; };
+		stages     = { stage(0, ns), stage(ns, ns + nEven), stage(ns + nEven, ns + nCuts), stage(ns + nCuts, nGroups) };
 	}
 
 } // namespace cd

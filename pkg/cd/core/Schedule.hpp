@@ -17,7 +17,9 @@
 //                by contact).
 //   Slabs   (5)  vertical slabs of equal contact counts across the wider horizontal extent; the
 //                contacts inside a slab form one range, all slabs one parallel stage, followed by
-//                the interface (contacts of bodies touching two slabs), one serial range.
+//                the interface: the contacts of each cut (bodies touching the two slabs beside it)
+//                one range, the even cuts one parallel stage, then the odd cuts, then what spans
+//                more than two slabs, one serial range.
 // Retired (measured worse, docs/results.md): 0 by ids, 2 alternating up and down, 3 downwards.
 #pragma once
 
@@ -38,7 +40,8 @@ namespace cd {
 		std::vector<Stage> stages;
 		bool               sumPerContact = false; // sums over a pass are taken contact by contact (Colours), not range by range
 		int                nColours = 0;   // Colours: colours used (65: an overflow group exists)
-		int                nInterface = 0; // Slabs: contacts in the serial interface
+		int                nInterface = 0; // Slabs: contacts not inside one slab (swept after the slabs)
+		int                nSerial    = 0; // Slabs: interface contacts spanning more than two slabs (swept by one thread)
 
 		int ranges() const { return int(bounds.size()) - 1; }
 		/*! Run every stage on the calling thread, ranges in their order (the same results: the

@@ -395,6 +395,7 @@ namespace cd {
 		if (!sweepThreads) order.serial();
 		stats.nColours   = order.nColours;
 		stats.nInterface = order.nInterface;
+		stats.nSerial    = order.nSerial;
 		rangeChange.assign(order.ranges(), 0);
 		rangeStatus.assign(order.ranges(), 0);
 		rangeUpdates.assign(order.ranges(), 0);
