@@ -13,14 +13,14 @@ file's tolerance, and ns per contact-sweep (forced 20- and 80-sweep solves). A r
 the new build is faster. Run it on an idle machine: the numbers are only comparable within one run.
 """
 import argparse
-import csv
-import datetime
 import os
-import platform
 import re
 import statistics
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', '..', 'py'))  # this checkout's yadecd
+from yadecd.io import write_csv  # noqa: E402
 
 FIGURES = (('sweeps', r'(\d+) sweeps \('),
            ('contact_updates', r'; (\d+) contact updates'),
@@ -89,7 +89,7 @@ def main(argv=None):
             if name not in slot['old'] or name not in slot['new']:
                 continue
             mo, mn = statistics.median(slot['old'][name]), statistics.median(slot['new'][name])
-            rows.append(dict(date=datetime.date.today().isoformat(), host=platform.node(), step=os.path.basename(step),
+            rows.append(dict(step=os.path.basename(step),
                              contacts=slot['contacts'], variant=variant, threads=t, rounds=args.rounds, figure=name,
                              old_median=mo, new_median=mn, ratio_new_old=(mn / mo if mo else float('nan'))))
     print('%-16s %-22s %2s  %-22s %12s %12s %7s' % ('step', 'variant', 'th', 'figure', 'old', 'new', 'new/old'))
@@ -97,12 +97,7 @@ def main(argv=None):
         print('%-16s %-22s %2d  %-22s %12.4g %12.4g %7.3f' % (r['step'], r['variant'][:22], r['threads'], r['figure'],
                                                               r['old_median'], r['new_median'], r['ratio_new_old']))
     if args.out:
-        os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-        with open(args.out, 'w', newline='') as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-        print('core_ab.py: %d rows written to %s' % (len(rows), args.out))
+        write_csv(args.out, rows)
 
 
 if __name__ == '__main__':
