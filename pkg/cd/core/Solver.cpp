@@ -697,32 +697,19 @@ namespace cd {
 			place(contacts.info[k].b1), place(contacts.info[k].b2);
 		for (int id = 0; id < nb; ++id)
 			place(id);
-		permuteBodies(bodyOfSlot);
-		for (size_t k = 0; k < contacts.size(); ++k) {
-			ContactInfo& c = contacts.info[k];
-			c.b1 = slotOfBody[c.b1], c.b2 = slotOfBody[c.b2];
-			if (contacts.state[k].kernel < 0) contacts.sphere[k].b1 = c.b1, contacts.sphere[k].b2 = c.b2;
-		}
+		permuteBodies(bodyOfSlot, slotOfBody);
 		renumbered = true;
 	}
 
 	void Solver::restoreBodyIds()
 	{
 		if (!renumbered) return;
-		std::vector<int> back(bodies.size()); // slot of each id, as the permutation's source list
-		for (size_t id = 0; id < bodies.size(); ++id)
-			back[id] = slotOfBody[id];
-		permuteBodies(back);
-		for (size_t k = 0; k < contacts.size(); ++k) {
-			ContactInfo& c = contacts.info[k];
-			c.b1 = bodyOfSlot[c.b1], c.b2 = bodyOfSlot[c.b2];
-			if (contacts.state[k].kernel < 0) contacts.sphere[k].b1 = c.b1, contacts.sphere[k].b2 = c.b2;
-		}
+		permuteBodies(slotOfBody, bodyOfSlot);
 		renumbered = false;
 	}
 
-	// bodies[i] ← bodies[from[i]], the same for records.
-	void Solver::permuteBodies(const std::vector<int>& from)
+	// bodies[i] ← bodies[from[i]], the same for records; every contact's body b becomes to[b].
+	void Solver::permuteBodies(const std::vector<int>& from, const std::vector<int>& to)
 	{
 		std::vector<Body>       b(bodies.size());
 		std::vector<BodyRecord> r(records.size());
@@ -730,6 +717,11 @@ namespace cd {
 			b[i] = bodies[from[i]], r[i] = records[from[i]];
 		bodies.swap(b);
 		records.swap(r);
+		for (size_t k = 0; k < contacts.size(); ++k) {
+			ContactInfo& c = contacts.info[k];
+			c.b1 = to[c.b1], c.b2 = to[c.b2];
+			if (contacts.state[k].kernel < 0) contacts.sphere[k].b1 = c.b1, contacts.sphere[k].b2 = c.b2;
+		}
 	}
 
 	// ------------------------------------------------------------------------- export

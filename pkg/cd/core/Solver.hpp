@@ -94,7 +94,7 @@ namespace cd {
 		bool             renumbered = false;
 		void             renumberBodies();
 		void             restoreBodyIds();
-		void             permuteBodies(const std::vector<int>& from);
+		void             permuteBodies(const std::vector<int>& from, const std::vector<int>& to);
 		void     recordTrace(SolveStats& stats) const;
 		Real     contactResidual2(long k) const;
 		void     startMomentum();
