@@ -408,6 +408,43 @@ void traceCheck(const std::string& name, const cd::SavedProblem& pb)
 	}
 }
 
+// The schedules' invariant: the ranges of one stage share no dynamic body (what lets a parallel
+// stage run them at once), and the ranges cover every contact once, for the colours and for the
+// slabs at 2 to 64 slabs (the cut stages included).
+void scheduleCheck(const std::string& name, const cd::SavedProblem& pb)
+{
+	for (int variant : { 4, 5002, 5004, 5008, 5064 }) {
+		cd::Params p = pb.params;
+		p.schedule   = variant == 4 ? 4 : 5;
+		p.slabs      = variant == 4 ? pb.params.slabs : variant - 5000;
+		p.maxIter    = 1;
+		cd::Solver s;
+		pb.load(s);
+		s.assemble(p);
+		s.solve(p);
+		const cd::Schedule& o  = s.schedule();
+		const long          nc = long(s.contacts.size());
+		bool                ok = !o.bounds.empty() && o.bounds.front() == 0 && o.bounds.back() == nc;
+		for (size_t i = 0; i + 1 < o.bounds.size(); ++i)
+			ok = ok && o.bounds[i] <= o.bounds[i + 1];
+		int conflicts = 0;
+		for (const auto& st : o.stages) {
+			ok = ok && st.begin <= st.end && st.end <= o.ranges();
+			std::map<int, int> owner; // dynamic body -> range
+			for (int i = st.begin; i < st.end; ++i)
+				for (long k = o.bounds[i]; k < o.bounds[i + 1]; ++k)
+					for (int b : { s.contacts.info[k].b1, s.contacts.info[k].b2 }) {
+						if (!s.records[b].dynamic) continue;
+						const auto it = owner.find(b);
+						if (it == owner.end()) owner[b] = i;
+						else if (it->second != i) ++conflicts;
+					}
+		}
+		check(ok && conflicts == 0, name + " [schedule " + std::to_string(p.schedule) + (p.schedule == 5 ? ", " + std::to_string(p.slabs) + " slabs" : "") +
+		                                "]: the ranges cover the contacts and those of a stage share no dynamic body (" + std::to_string(conflicts) + " shared)");
+	}
+}
+
 void roundTrip(const std::string& name, const std::string& path, const cd::SavedProblem& pb)
 {
 	std::ifstream f(path);
@@ -461,6 +498,7 @@ void cdtest::solverTests(const std::string& dataDir)
 		threadsCheck(n, pb);
 		worklistCheck(n, pb, e);
 		traceCheck(n, pb);
+		scheduleCheck(n, pb);
 		roundTrip(n, path, pb);
 	}
 }
