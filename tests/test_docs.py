@@ -708,7 +708,8 @@ def script_path(name, root=REPO):
 
 def unknown_options(text, root=REPO):
     """``(line, 'script --flag', why)`` of the options given to a script on a command line or in
-    inline code that the script does not know (``--no-x`` counts as ``--x``)."""
+    inline code that the script does not know (``--no-x`` counts as ``--x``; what follows a bare
+    ``--`` is passed on to another program and not checked)."""
     out, first = [], 1
     logical = []  # (first line, text) of the lines, a backslash continuation joined to the next
     for raw in re.split(r'(?<!\\)\n', text):
@@ -722,6 +723,7 @@ def unknown_options(text, root=REPO):
                 continue
             end = hits[i + 1].start() if i + 1 < len(hits) else len(line)
             segment = re.split(r'[`#|;]', line[m.end():end])[0]
+            segment = re.split(r'(?<!\S)--(?!\S)', segment)[0]  # a bare -- ends the script's own options (the rest is passed on)
             known = script_flags(path)
             for flag in re.findall(r'(?<![\w-])(--[a-z][a-z0-9-]*)', segment):
                 if flag not in known and '--' + flag[5:] not in known:
@@ -852,9 +854,10 @@ class CheckerTest(unittest.TestCase):
         text = ('    scripts/yade -n -x scripts/pile.py --out x --n-grains 300 --schedule slabs --no-momentum \\\n'
                 '        --sweep-order 5\n'
                 'run `pile_figures.py RUN --epoch 10` or `cd_core_bench --tolerance 1e-3 --bogus 1`,\n'
-                '`pile.py --resume`\n')
+                '`pile.py --resume`\n'
+                '`pile_ensemble.py run ROOT --sizes 5000 --bogus-two -- --dt 1e-3 --tolerance 3e-3`\n')
         self.assertEqual([(ln, n) for ln, n, _ in unknown_options(text)],
-                         [(1, 'scripts/pile.py --sweep-order'), (3, 'cd_core_bench --bogus')])
+                         [(1, 'scripts/pile.py --sweep-order'), (3, 'cd_core_bench --bogus'), (5, 'pile_ensemble.py --bogus-two')])
 
     def test_records_index(self):
         import tempfile
