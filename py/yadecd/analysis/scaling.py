@@ -12,7 +12,6 @@ one contact update measured on one thread (cd_core_bench's ns per contact-sweep)
 cost of one meeting of the threads. ``cd_core_bench`` reports the schedule as ``stages``: per
 stage its ranges' contact counts, ' ' between ranges and '|' between stages.
 """
-import math
 
 
 def parse_stages(text):
