@@ -108,6 +108,19 @@ class TestEnsembleEpochs(unittest.TestCase):
         self.assertEqual(cmd[cmd.index('--epochs') + 1], '5.0000,10.0000,11.0000')
         self.assertEqual(ens.feed_time(1000, 200.0, 1e-3), ens.feed_time(1000, 200.0, 2e-4))
 
+    def test_grain_shape_names_the_runs(self):
+        """An ensemble of clump grains names its runs by the shape (records of several shapes can
+        share a directory); spheres keep the paper's names."""
+        import tempfile
+        with tempfile.TemporaryDirectory() as root:
+            e = ens.Ensemble(root)
+            e.plan([300], [1, 2], 1.0, ['--grain-shape', 'dimer', '--dt', '1e-3'])
+            self.assertEqual(sorted(e.runs()), ['dimer_n300_s1', 'dimer_n300_s2'])
+        self.assertEqual(ens.run_name(300, 1), 'n300_s1')
+        self.assertEqual(ens.option_text(['--grain-shape=tetra'], '--grain-shape', 'sphere'), 'tetra')
+        with self.assertRaisesRegex(ValueError, '--grain-shape needs a value'):
+            ens.option_text(['--grain-shape'], '--grain-shape', 'sphere')
+
 
 class TestPaired(unittest.TestCase):
     """A run against its branch, one epoch: differences and their size in seed spreads."""

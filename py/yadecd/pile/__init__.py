@@ -3,7 +3,9 @@
 Protocol (defaults are the paper's, :data:`protocol.PROTOCOL`; SI units inside):
 
 - grains: spheres with diameters uniform in [0.25, 0.5] cm, density 1000 kg/m³ (inferred from
-  the paper's bulk density 0.615 g/cm³ at a packing fraction near 0.6);
+  the paper's bulk density 0.615 g/cm³ at a packing fraction near 0.6); or (``grain_shape``)
+  rigid clumps of spheres of the same volume distribution (:mod:`.grains`), created in a
+  uniformly random orientation;
 - floor: a random paving of fixed grains of the same size distribution, resting on the plane
   z = 0 (a wall at z = 0 under it catches grains that slip between paving grains);
 - friction 0.4 everywhere, restitution 0, gravity 9.81 m/s², time step 2e-4 s;
@@ -22,6 +24,9 @@ from, :class:`runner.PileRun` and docs/reliability.md), ``progress.csv`` and ``s
 ===================  =========================================================================
 :mod:`.protocol`     parameters and defaults, their validation, the feed and snapshot schedule
                      (imports without YADE)
+:mod:`.grains`       grain shapes (spheres, clumps of spheres of the same volume), their mass
+                     properties, random orientations, the resting height of a dropped grain
+                     (imports without YADE)
 :mod:`.build`        paving, grain creation, engines, scenes from snapshots, the cone state
 :mod:`.write`        snapshots of a running scene
 :mod:`.runner`       :class:`PileRun` (start, resume, advance), branches, :func:`run`
@@ -39,9 +44,11 @@ _WHERE = {
                  'BRANCH_MAY_CHANGE', 'epoch_list', 'check_params', 'disk_need', 'creation_period', 'feed_time',
                  'engine_options', 'PROTOCOL', 'SOLVER_DEPARTURES', 'SOLVER_OPTIONS', 'RENAMED', 'upgrade',
                  'read_run_json', 'solver_defaults', 'defaults'),
-    'build': ('paving', 'build_scene', 'add_grain', 'set_engines', 'solver_stats', 'scene_from_snapshot', 'cone_state',
+    'build': ('paving', 'build_scene', 'add_grain', 'add_clump', 'set_clump_mass', 'set_engines', 'solver_stats', 'scene_from_snapshot', 'cone_state',
               'separating_dilation', 'creation_height', 'Feeder', 'Clock'),
     'write': ('snapshot',),
+    'grains': ('SHAPES', 'shape', 'equivalent_radius', 'member_radius', 'mass_properties', 'circumradius', 'aspect_ratio',
+               'union_moments', 'random_rotation', 'resting_height'),
     'runner': ('ETA_EXPONENT', 'eta_seconds', 'preflight', 'RUN_FILES', 'PileRun', 'duration', 'has_run', 'clear_run',
                'branch', 'run', 'CheckpointError', 'RunStateError'),
 }

@@ -12,6 +12,7 @@ from yade.wrapper import Sphere, ContactDynamicsIntegrator
 
 from .. import engines
 from ..scenes import material
+from . import grains
 from .protocol import defaults, engine_options, expected_base_radius, read_run_json
 from .write import snapshot
 
@@ -67,9 +68,47 @@ def build_scene(p, floor=None):
     return len(O.bodies) - 1
 
 
-def add_grain(x, y, z, r):
-    """Append one pile grain (the run's material, at rest); returns its id."""
-    return O.bodies.append(utils.sphere((x, y, z), r, material=O.materials[0]))
+def add_grain(x, y, z, r, grain_shape='sphere', rotation=None):
+    """Append one pile grain (the run's material, at rest) centred at (x, y, z) with the volume
+    of a sphere of radius ``r``: a sphere, or a clump of the shape ``grain_shape``
+    (:mod:`.grains`) turned by the matrix ``rotation`` (default: the template's frame). Returns
+    the grain's id (a clump's own id; its members come just before it)."""
+    if grain_shape == 'sphere':
+        return O.bodies.append(utils.sphere((x, y, z), r, material=O.materials[0]))
+    a = grains.member_radius(grain_shape, 2 * r)
+    offsets = grains.shape(grain_shape)['offsets'] * a
+    if rotation is not None:
+        offsets = offsets @ np.asarray(rotation).T
+    return add_clump(np.array([x, y, z]) + offsets, a, grain_shape)
+
+
+def add_clump(centres, a, grain_shape):
+    """Append a clump of spheres of radius ``a`` at ``centres`` (the shape ``grain_shape``'s members,
+    placed) with the union's mass and inertia (overlaps counted once: :func:`grains.mass_properties`;
+    YADE's own sum would count them twice). Returns the clump's id."""
+    mat = O.materials[0]
+    cid, ids = O.bodies.appendClumped([utils.sphere(tuple(c), a, material=mat) for c in centres])
+    set_clump_mass(O.bodies[cid], grain_shape, a)
+    return cid
+
+
+def set_clump_mass(clump, grain_shape, a):
+    """Give the clump body the mass and principal inertia of the union of its members (shape
+    ``grain_shape``, member radius ``a``). YADE puts the clump's frame on the principal axes of its
+    own inertia estimate, which shares the template's symmetry axis: the template's axial moment
+    goes to the frame axis along which the members lie."""
+    mass, inertia = grains.mass_properties(grain_shape, a, O.materials[0].density)
+    axis = grains.shape(grain_shape)['axis']
+    if axis >= 0:
+        rel = np.array([tuple(pos) for pos, _ in clump.shape.members.values()])
+        along = int(np.argmax(np.abs(rel).max(axis=0)))
+        order = [axis] + [k for k in range(3) if k != axis]  # template index -> frame index
+        frame = [0.0] * 3
+        for k, idx in zip([along] + [k for k in range(3) if k != along], order):
+            frame[k] = float(inertia[idx])
+        inertia = frame
+    clump.state.mass = float(mass)
+    clump.state.inertia = Vector3(*[float(v) for v in inertia])
 
 
 def set_engines(p):
@@ -109,6 +148,9 @@ def scene_from_snapshot(path, **overrides):
         p.update({k: v for k, v in read_run_json(run_json).items() if k in p})
     p.update(overrides)
     snap = np.load(path)
+    if 'm_grain' in snap.files or p.get('grain_shape', 'sphere') != 'sphere':
+        raise ValueError('%s is a snapshot of clump grains: a scene is rebuilt from it for sphere grains only (resume or '
+                         'load the run from its checkpoint instead: PileRun.load)' % path)
     O.reset()
     mat = material(p['mu'], p['rho'])
     O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
@@ -146,6 +188,8 @@ def cone_state(run_dir, n_grains=14000, slope_deg=28.0, settle=0.1, cell_grains=
     unknown = set(p) - set(defaults())
     if unknown:
         raise ValueError('unknown pile parameters: %s' % ', '.join(sorted(unknown)))
+    if p['grain_shape'] != 'sphere':
+        raise ValueError('cone_state builds piles of spheres only, not grain_shape=%r' % (p['grain_shape'],))
     if n_grains < 10 or not (5.0 <= slope_deg <= 40.0) or settle < 0:
         raise ValueError('cone_state needs n_grains >= 10, 5 <= slope_deg <= 40 and settle >= 0 (got %r, %r, %r)'
                          % (n_grains, slope_deg, settle))
@@ -226,35 +270,30 @@ def separating_dilation(centres, radii, margin=1e-9):
 def creation_height(x, y, r, centres, radii):
     """Lowest height of a sphere (radius ``r``) centred on the vertical through (x, y) at which
     it rests on one of the spheres (``centres``, ``radii``) met on that vertical, or on the
-    plane z = 0, without overlapping any of them.
+    plane z = 0, without overlapping any of them: :func:`grains.resting_height` for one sphere.
 
     Sphere j is met when its horizontal distance d_j < r + r_j; the new sphere then overlaps it
     for heights within s_j = sqrt((r + r_j)² − d_j²) of z_j and rests on it at z_j + s_j. The
     candidates are these resting heights and r (the plane); the lowest free one is returned, so
     a grain in flight above the pile does not lift the new grain above itself."""
-    if len(radii) == 0:
-        return r
-    d2 = (centres[:, 0] - x) ** 2 + (centres[:, 1] - y) ** 2
-    reach = (r + radii) ** 2 - d2
-    hit = reach > 0
-    if not hit.any():
-        return r
-    zc, s = centres[hit, 2], np.sqrt(reach[hit])
-    candidates = np.sort(np.concatenate(([r], zc + s)))
-    candidates = candidates[candidates >= r]
-    # free: outside every open interval (z_j − s_j, z_j + s_j); a relative margin absorbs round-off
-    free = np.all(np.abs(candidates[:, None] - zc[None, :]) >= s[None, :] * (1 - 1e-12), axis=1)
-    return float(candidates[np.argmax(free)])  # the highest candidate is always free
+    return grains.resting_height(x, y, np.zeros((1, 3)), [r], centres, radii)
 
 
 class Feeder:
-    """Creates grains by the paper's rule. Keeps the list of grains near the axis (the only ones
-    a new grain can touch), refreshed from all grains every ``refresh`` creations."""
+    """Creates grains by the paper's rule (a clump, for ``grain_shape`` other than a sphere, in a
+    uniformly random orientation drawn after its position and size, so that sphere runs draw the
+    same numbers as before clumps). Keeps the list of spheres (grains or clump members) near the
+    axis, the only ones a new grain can touch, refreshed from all of them every 20 creations."""
 
     def __init__(self, p, rng, births, clock=None):
         self.p, self.rng, self.births = p, rng, births
         self.clock = clock or Clock()    # the run's clock (birth times); default: YADE's
-        self.reach = p['feed_radius'] + p['d_max']  # a grain outside this cylinder is never touched
+        self.shape = p.get('grain_shape', 'sphere')
+        if self.shape == 'sphere':
+            self.reach = p['feed_radius'] + p['d_max']  # a sphere outside this cylinder is never touched
+        else:   # the largest grain's circumscribed radius and the largest sphere it may touch
+            a_max = grains.member_radius(self.shape, p['d_max'])
+            self.reach = p['feed_radius'] + grains.circumradius(self.shape) * a_max + max(0.5 * p['d_max'], a_max)
         self.near = []
         self.count = 0
 
@@ -273,10 +312,19 @@ class Feeder:
         states = [O.bodies[i].state for i in self.near]
         centres = np.array([tuple(s.pos) for s in states]) if states else np.zeros((0, 3))
         radii = np.array([O.bodies[i].shape.radius for i in self.near])
-        z = creation_height(x, y, r, centres, radii)
-        bid = add_grain(x, y, z, r)
+        if self.shape == 'sphere':
+            z = creation_height(x, y, r, centres, radii)
+            bid = add_grain(x, y, z, r)
+            members = [bid]
+        else:
+            rotation = grains.random_rotation(rng)
+            am = grains.member_radius(self.shape, 2 * r)
+            offsets = grains.shape(self.shape)['offsets'] * am @ rotation.T
+            z = grains.resting_height(x, y, offsets, np.full(len(offsets), am), centres, radii)
+            bid = add_grain(x, y, z, r, self.shape, rotation)
+            members = sorted(O.bodies[bid].shape.members)
         self.births[bid] = self.clock.time()
-        self.near.append(bid)
+        self.near.extend(members)
         self.count += 1
         return bid
 

@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 
+from .grains import SHAPES
+
 #: The solver options a pile run sets, by their pile names (the engine attribute's name in
 #: snake_case). :class:`ContactDynamicsIntegrator` defines each one, its default and its
 #: validation (:func:`yadecd.solver_options`); the pile states only where it departs
@@ -26,6 +28,7 @@ SOLVER_DEPARTURES = dict(
 #: The protocol's own parameters, the paper's values (SI units; the paper's cm in comments).
 PROTOCOL = dict(
     n_grains=14000,      # grains to create
+    grain_shape='sphere',  # 'sphere' (the paper's), or a clump of spheres of that volume: 'dimer', 'tetra' (grains.SHAPES)
     d_min=0.0025,        # m   (0.25 cm)
     d_max=0.0050,        # m   (0.50 cm)
     rho=1000.0,          # kg/m³
@@ -181,6 +184,7 @@ def check_params(p):
         ('snap_every', p['snap_every'] > 0, 'positive [s]'),
         ('checkpoint_every', p['checkpoint_every'] > 0, 'positive [s of wall time]'),
         ('stop_time', p['stop_time'] >= 0, '>= 0 [s]'),
+        ('grain_shape', p['grain_shape'] in SHAPES, 'one of %s' % ', '.join(repr(k) for k in sorted(SHAPES))),
         ('method', p['method'] in ('CD', 'MD'), "'CD' or 'MD'"),
         ('young', p['young'] > 0, 'positive [Pa]'),
         ('md_safety', 0 < p['md_safety'] <= 1, 'in (0, 1]'),
@@ -206,7 +210,9 @@ def disk_need(p):
     a run that starts has room to finish."""
     floor_radius = p['floor_radius'] or 1.4 * expected_base_radius(p['n_grains'], p['d_min'], p['d_max'])
     d_mean = 0.5 * (p['d_min'] + p['d_max'])
-    bodies = p['n_grains'] + 0.55 * (floor_radius / (0.5 * d_mean)) ** 2
+    members = len(SHAPES[p.get('grain_shape', 'sphere')]['offsets'])
+    per_grain = 1 if members == 1 else members + 1       # a clump is a body besides its members
+    bodies = per_grain * p['n_grains'] + 0.55 * (floor_radius / (0.5 * d_mean)) ** 2
     t_end = feed_end_time(p) + p['relax']
     n_snaps = len(snapshot_times(p, t_end))
     return int(bodies * (3 * 1000 + n_snaps * 400) + 1e6)

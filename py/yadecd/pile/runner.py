@@ -15,7 +15,7 @@ from ..io import write_json_atomic
 from ..runs import cost as runcost, runstate
 from ..runs.runstate import RunStateError  # noqa: F401 (reachable as yadecd.pile.RunStateError)
 from ..runs.checkpoint import CheckpointStore, CheckpointError, has_checkpoint
-from .build import Clock, Feeder, add_grain, build_scene, solver_stats
+from .build import Clock, Feeder, add_clump, add_grain, build_scene, solver_stats
 from .protocol import (BRANCH_MAY_CHANGE, RESUME_MAY_CHANGE, check_params, creation_period, defaults, disk_need,
                        feed_end_time, read_run_json, snapshot_times, upgrade)
 from .write import snapshot
@@ -230,17 +230,29 @@ class PileRun:
 
     def rebuild(self, data):
         """The scene again from a run state, by the code that builds a new run: floor and engines
-        (:func:`build_scene`), grains (:func:`add_grain`), then positions, velocities and contacts
-        with their warm-start impulses (:mod:`yadecd.runs.runstate`)."""
+        (:func:`build_scene`), grains (:func:`add_grain`, :func:`add_clump` from the saved member
+        centres), then positions, velocities and contacts with their warm-start impulses
+        (:mod:`yadecd.runs.runstate`)."""
         p = self.p
-        ids, kind = data['body_id'], data['body_kind']
+        ids, kind, clump_of = data['body_id'], data['body_kind'], data['clump_id']
         n_paving = int(p['n_paving'])
-        if len(ids) < n_paving + 1 or kind[0] != 0 or not (kind[1:] == 1).all():
-            raise runstate.RunStateError('run state does not hold a pile scene (a wall, then spheres)')
+        shape = p.get('grain_shape', 'sphere')
+        grain_rows = slice(n_paving + 1, len(ids))
+        if shape == 'sphere':   # spheres, none in a clump
+            grains_ok = ((kind[grain_rows] == 1) & (clump_of[grain_rows] < 0)).all()
+        else:                   # clumps and their members
+            grains_ok = ((kind[grain_rows] == 2) | ((kind[grain_rows] == 1) & (clump_of[grain_rows] >= 0))).all()
+        if len(ids) < n_paving + 1 or kind[0] != 0 or not (kind[1:n_paving + 1] == 1).all() or not grains_ok:
+            raise runstate.RunStateError('run state does not hold a pile scene of %s grains (a wall, the paving, then the '
+                                         'grains)' % shape)
         floor = np.column_stack([data['pos'][1:n_paving + 1, :2], data['radius'][1:n_paving + 1]])
         build_scene(p, floor=floor)
-        for x, r in zip(data['pos'][n_paving + 1:], data['radius'][n_paving + 1:]):
-            add_grain(x[0], x[1], x[2], r)
+        for k in range(n_paving + 1, len(ids)):
+            if kind[k] == 1 and clump_of[k] < 0:
+                add_grain(*data['pos'][k], data['radius'][k])
+            elif kind[k] == 2:
+                rows = np.flatnonzero(clump_of == ids[k])
+                add_clump(data['pos'][rows], float(data['radius'][rows[0]]), shape)
         runstate.restore_bodies(data)
         restored, skipped = runstate.restore_contacts(data)
         self.clock.t0, self.clock.i0 = float(data['time']), int(data['iter'])

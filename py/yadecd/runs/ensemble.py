@@ -32,9 +32,11 @@ RATE_DEFAULT = DEFAULTS['rate']     # grains per second
 DT_DEFAULT = DEFAULTS['dt']         # s
 
 
-def run_name(n_grains, seed):
-    """Directory name of one run of an ensemble."""
-    return 'n%d_s%d' % (n_grains, seed)
+def run_name(n_grains, seed, grain_shape='sphere'):
+    """Directory name of one run of an ensemble: ``n1000_s3``, or ``dimer_n1000_s3`` for grains of
+    another shape than the paper's spheres (so that records of several shapes can sit together)."""
+    name = 'n%d_s%d' % (n_grains, seed)
+    return name if grain_shape == 'sphere' else '%s_%s' % (grain_shape, name)
 
 
 def epochs(n_grains, relax, rate=RATE_DEFAULT, dt=DT_DEFAULT):
@@ -114,9 +116,10 @@ class Ensemble:
                              '(use another directory)' % (self.root, old.get('relax'), old.get('options'),
                                                           relax, list(options)))
         self.data['plan'] = {'relax': relax, 'options': list(options)}
+        shape = option_text(options, '--grain-shape', 'sphere')
         for n in sizes:
             for s in seeds:
-                name = run_name(n, s)
+                name = run_name(n, s, shape)
                 self.data['runs'].setdefault(name, {'n_grains': n, 'seed': s, 'state': 'pending',
                                                     'attempts': 0})
         self.save()
@@ -136,18 +139,29 @@ def run_command(repo, run_dir, rec, plan, resume):
                   '--epochs', epochs(rec['n_grains'], plan['relax'], rate, dt)] + list(plan['options'])
 
 
-def option_value(options, flag, default):
-    """The float value of ``flag`` in a pile.py option list (``['--dt', '1e-3']`` or ``['--dt=1e-3']``),
-    ``default`` when absent. Raises ValueError naming the flag when its value is missing or not a number."""
+def option_text(options, flag, default):
+    """The value of ``flag`` in a pile.py option list (``['--dt', '1e-3']`` or ``['--dt=1e-3']``) as
+    given, ``default`` when absent. Raises ValueError naming the flag when its value is missing."""
     options = list(options)
     for i, o in enumerate(options):
         if o == flag or o.startswith(flag + '='):
             text = o.split('=', 1)[1] if '=' in o else (options[i + 1] if i + 1 < len(options) else None)
-            try:
-                return float(text)
-            except (TypeError, ValueError):
-                raise ValueError('pile option %s needs a number, got %r' % (flag, text))
+            if text is None:
+                raise ValueError('pile option %s needs a value' % flag)
+            return text
     return default
+
+
+def option_value(options, flag, default):
+    """The float value of ``flag`` in a pile.py option list (``['--dt', '1e-3']`` or ``['--dt=1e-3']``),
+    ``default`` when absent. Raises ValueError naming the flag when its value is missing or not a number."""
+    text = option_text(options, flag, None)
+    if text is None:
+        return default
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError('pile option %s needs a number, got %r' % (flag, text)) from None
 
 
 def run_pile(repo, run_dir, rec, plan):

@@ -194,14 +194,33 @@ def restore_bodies(data):
                             % (present[:5], ids[:5].tolist(), len(present), len(ids)))
     for k, bid in enumerate(ids.tolist()):
         check_body(O.bodies[bid], data, k)
+    row = {bid: k for k, bid in enumerate(ids.tolist())}
     for k, bid in enumerate(ids.tolist()):
-        s = O.bodies[bid].state
+        b = O.bodies[bid]
+        s = b.state
         s.pos = Vector3(*data['pos'][k])
         w, x, y, z = data['ori'][k]
-        s.ori = Quaternion(w, x, y, z)
+        if not b.isClump or _frame_fits(b, Quaternion(w, x, y, z), data, row):
+            s.ori = Quaternion(w, x, y, z)
         s.vel = Vector3(*data['vel'][k])
         s.angVel = Vector3(*data['angVel'][k])
         s.refPos = s.pos
+
+
+def _frame_fits(clump, ori, data, row):
+    """Whether the saved orientation ``ori`` of ``clump`` places its members, at their positions
+    relative to the clump's frame in the scene, where the run state has them (to 1e-9 of their
+    radius). A rebuilt clump's frame is the principal frame YADE computes anew from the members;
+    where the inertia has equal moments (an axisymmetric or isotropic clump) that frame may differ
+    from the saved one by a symmetry of the inertia, and the saved orientation would then move the
+    members. The scene's frame is kept in that case: the members, the inertia in the global frame
+    and the velocities are the saved ones, which is the physical state."""
+    for mid, (rel, _) in clump.shape.members.items():
+        k = row[mid]
+        placed = Vector3(*data['pos'][row[clump.id]]) + ori * rel
+        if (placed - Vector3(*data['pos'][k])).norm() > 1e-9 * max(float(data['radius'][k]), 1e-300):
+            return False
+    return True
 
 
 def check_body(b, data, k):

@@ -37,11 +37,13 @@ def final_state(run_dir):
 
 
 def _contacts_sorted(s):
-    """A snapshot with its contact arrays in (id1, id2) order: YADE's interaction container does
-    not keep one order through a save and load, and the order carries no physics."""
+    """A snapshot with its contact arrays in (id1, id2, contact point) order: YADE's interaction
+    container does not keep one order through a save and load, and the order carries no physics
+    (two clumps may touch at several points: the point breaks the tie)."""
     if 'c_id1' not in s or not len(s['c_id1']):
         return s
-    order = np.lexsort((s['c_id2'], s['c_id1']))
+    point = np.asarray(s['c_point']).reshape(-1, 3)
+    order = np.lexsort((point[:, 2], point[:, 1], point[:, 0], s['c_id2'], s['c_id1']))
     return {k: (v[order] if k.startswith('c_') else v) for k, v in s.items()}
 
 
