@@ -336,6 +336,41 @@ class TestEnsembleStatistics(unittest.TestCase):
         self.assertEqual(feed['fossil_law_pooled']['centre']['layer']['n'], 0)
 
 
+class TestShapeStatistics(unittest.TestCase):
+    """The grain-shape comparison on constructed records: each shape's statistics are its own
+    records' (spheres are not mixed with clumps), old records without a shape are spheres, the
+    sphere tables keep their keys, and the shape outputs are written only when another shape is
+    present (records missing from a figure are said on it, not drawn empty)."""
+
+    def test_shapes_apart(self):
+        from yadecd.analysis import ensemble as pea
+        rec = TestEnsembleStatistics.record
+        spheres = [rec(1000, s, 'relaxed', 26.0 + s, 1.0, 1.0) for s in (1, 2)]          # D = 0
+        dimers = [dict(rec(1000, s, 'relaxed', 30.0 + s, 1.0, 2.0), grain_shape='dimer', run='dimer_n1000_s%d' % s)
+                  for s in (1, 2, 3)]                                                     # D = 0.5
+        for r in spheres + dimers:
+            r['rings_r_over_d'], r['rings_p_over_hydrostatic'] = [1.0, 3.0], [0.8, 1.0]
+        per = pea.shape_stats(spheres + dimers)
+        self.assertEqual(list(per), ['sphere', 'dimer'])
+        self.assertAlmostEqual(per['sphere'][0]['1000_relaxed']['slope_deg']['mean'], 27.5, delta=1e-12)
+        self.assertAlmostEqual(per['dimer'][0]['1000_relaxed']['slope_deg']['mean'], 32.0, delta=1e-12)
+        self.assertEqual(per['dimer'][0]['1000_relaxed']['n_runs'], 3)
+        self.assertAlmostEqual(per['dimer'][0]['1000_relaxed']['dip_pooled']['D'], 0.5, delta=1e-12)
+        self.assertAlmostEqual(per['sphere'][0]['1000_relaxed']['dip_pooled']['D'], 0.0, delta=1e-12)
+        with tempfile.TemporaryDirectory() as d:
+            self.assertEqual(pea.analyse_shapes(spheres, d), {})
+            self.assertEqual(os.listdir(d), [])
+            out = pea.analyse_shapes(spheres + dimers, d)
+            self.assertEqual(sorted(out), ['dimer', 'sphere'])
+            self.assertEqual(sorted(os.listdir(d)), ['shape_table.md', 'shapes_dip.png', 'shapes_pressure_n1000.png',
+                                                     'shapes_slope.png'])
+            with open(os.path.join(d, 'shape_table.md')) as f:
+                text = f.read()
+            self.assertIn('## dimer', text)
+            self.assertIn('| 1000 dimer grains, relaxed (3 seeds) |', text)
+            self.assertIn('32.00 ± 1.00', text)
+
+
 class TestStoredRecords(unittest.TestCase):
     def test_stored_records_fill_in_absent_runs_only(self):
         """Stored records are added for runs the ensemble directory lacks, never twice, and a

@@ -65,6 +65,7 @@ def run_record(snap_path, params):
     hydro = gp['hydrostatic_Pa']
     free = ~snap['fixed']
     rec = {'snapshot': os.path.basename(snap_path), 'time_s': snap['time'], 'n_grains': int(params.get('n_grains', 0)),
+           'grain_shape': params.get('grain_shape', 'sphere'),
            'seed': params.get('seed'), 'dt_s': float(params.get('dt', DEFAULTS['dt'])), 'n_contacts': len(pa.grain_contacts(snap)['i1']),
            'slope_deg': prof['slope_deg'], 'slope_err_deg': prof['slope_err_deg'], 'slope_note': prof['slope_note'],
            'chord_angle_deg': prof['chord_angle_deg'], 'slope_ls_window_deg': prof['slope_ls_window_deg'],
@@ -469,6 +470,154 @@ def stored_records(directories, known):
     return out
 
 
+def grain_shape(record):
+    """The grain shape of a record ('sphere' for records written before shapes were kept)."""
+    return record.get('grain_shape', 'sphere')
+
+
+#: Colours and markers of the grain shapes in the shape figures (spheres first, in black).
+SHAPE_STYLE = {'sphere': ('k', 'o'), 'dimer': ('tab:blue', 's'), 'tetra': ('tab:red', '^')}
+
+
+def _shape_order(shapes):
+    return sorted(shapes, key=lambda k: (list(SHAPE_STYLE).index(k) if k in SHAPE_STYLE else len(SHAPE_STYLE), k))
+
+
+def by_shape(records):
+    """{grain shape: its records}, spheres first."""
+    out = {}
+    for r in records:
+        out.setdefault(grain_shape(r), []).append(r)
+    return {k: out[k] for k in _shape_order(out)}
+
+
+def shape_stats(records):
+    """{grain shape: (stats, relaxation changes)} by :func:`aggregate` over each shape's records."""
+    return {shape: aggregate(recs) for shape, recs in by_shape(records).items()}
+
+
+def shape_table_markdown(per_shape, records):
+    """One ensemble table per grain shape (:func:`table_markdown`), under a heading each."""
+    parts = []
+    groups = by_shape(records)
+    for shape, (stats, changes) in per_shape.items():
+        labels = {n: '%s %s' % (label, shape) for n, label in size_labels(groups[shape]).items()}
+        parts.append('## %s\n\n%s' % (shape, table_markdown(stats, changes, labels)))
+    return '\n'.join(parts)
+
+
+def _shape_offsets(shapes):
+    k = len(shapes)
+    return {shape: 0.04 * (i - (k - 1) / 2) for i, shape in enumerate(shapes)}
+
+
+def fig_shapes_dip(per_shape, records, path, epoch='relaxed'):
+    """Central dip D against pile size, one series per grain shape: every pile (dots) and the
+    pooled D over seeds with its 95 % interval (jackknife over piles)."""
+    fig = pf.new_figure(7, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    offsets = _shape_offsets(list(per_shape))
+    for shape, (stats, _) in per_shape.items():
+        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
+        f = 1 + offsets[shape]
+        pts = [(r['n_grains'], r['dip_D']) for r in records if grain_shape(r) == shape and r['epoch'] == epoch
+               and r.get('dip_D') is not None]
+        if pts:
+            ax.plot([p[0] * f for p in pts], [p[1] for p in pts], '.', color=colour, ms=3, alpha=0.5)
+        rows = [(g['n_grains'] if 'n_grains' in g else int(k.split('_')[0]), g) for k, g in stats.items() if k.endswith('_' + epoch)]
+        xs = [(n, g['dip_pooled']) for n, g in rows if np.isfinite(g['dip_pooled']['se'])]
+        if xs:
+            n, d = np.array([x[0] for x in xs]), [x[1] for x in xs]
+            D = np.array([v['D'] for v in d])
+            lo, hi = np.array([v['ci95'][0] for v in d]), np.array([v['ci95'][1] for v in d])
+            ax.errorbar(n * f, D, yerr=[D - lo, hi - D], fmt=marker + '-', color=colour, capsize=3, lw=0.8,
+                        label='%s (%s piles per size)' % (shape, '/'.join(str(g['n_runs']) for _, g in sorted(rows, key=lambda t: t[0]))))
+    ax.axhline(0, color='k', lw=0.8)
+    _size_axis(ax, records)
+    ax.set_xlabel('grains')
+    ax.set_ylabel('D = 1 - p(r < 2d) / p(2d ≤ r < 4d)')
+    ax.set_title('central dip against size and grain shape, %s piles (95 %% intervals over seeds; D > 0 is a dip)' % epoch,
+                 fontsize=8)
+    ax.legend(fontsize=7)
+    return pf.save_figure(fig, path)
+
+
+def fig_shapes_slope(per_shape, records, path, epoch='relaxed'):
+    """Flank slope against pile size, one series per grain shape (mean over seeds, 95 %
+    interval; dots: single piles); the paper's 26°."""
+    fig = pf.new_figure(7, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    offsets = _shape_offsets(list(per_shape))
+    for shape, (stats, _) in per_shape.items():
+        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
+        f = 1 + offsets[shape]
+        for r in records:
+            if grain_shape(r) == shape and r['epoch'] == epoch and r.get('slope_deg') is not None:
+                ax.plot(r['n_grains'] * f, r['slope_deg'], '.', color=colour, ms=3, alpha=0.5)
+        ns, m, lo, hi = _series(stats, 'slope_deg', epoch)
+        if len(ns):
+            ax.errorbar(ns * f, m, yerr=[m - lo, hi - m], fmt=marker + '-', color=colour, capsize=3, lw=0.8, label=shape)
+    ax.axhline(26, color='k', ls='--', lw=0.8, label='paper (spheres, 14 000 grains)')
+    _size_axis(ax, records)
+    ax.set_xlabel('grains')
+    ax.set_ylabel('flank slope [deg]')
+    ax.set_title('free-surface slope against size and grain shape, %s piles (95 %% intervals over seeds)' % epoch, fontsize=8)
+    ax.legend(fontsize=7)
+    return pf.save_figure(fig, path)
+
+
+def fig_shapes_pressure(records, n_grains, path, epoch='relaxed'):
+    """Floor pressure over the hydrostatic ρ_bulk·g·H per ring at one pile size, one curve per
+    grain shape (mean over seeds, 95 % intervals)."""
+    fig = pf.new_figure(7, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    groups = by_shape([r for r in records if r['n_grains'] == n_grains and r['epoch'] == epoch])
+    for k, (shape, recs) in enumerate(groups.items()):
+        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
+        m = min(len(r['rings_p_over_hydrostatic']) for r in recs)
+        x = np.array(recs[0]['rings_r_over_d'][:m])
+        rows = np.array([[_num(v) for v in r['rings_p_over_hydrostatic'][:m]] for r in recs])
+        st = [pa.mean_interval(rows[:, j]) for j in range(m)]
+        mean = np.array([s_['mean'] for s_ in st])
+        lo = np.array([s_['ci95'][0] if np.isfinite(s_['ci95'][0]) else s_['mean'] for s_ in st])
+        hi = np.array([s_['ci95'][1] if np.isfinite(s_['ci95'][1]) else s_['mean'] for s_ in st])
+        shift = (k - (len(groups) - 1) / 2) * 0.12
+        ax.errorbar(x + shift, mean, yerr=[mean - lo, hi - mean], fmt=marker + '-', color=colour, ms=3, capsize=2,
+                    label='%s (%d piles)' % (shape, len(recs)))
+    if not groups:
+        ax.text(0.5, 0.5, 'no %s pile of %d grains' % (epoch, n_grains), ha='center', va='center', transform=ax.transAxes)
+    ax.axhline(1, color='k', ls=':', lw=0.8, label='hydrostatic ρ_bulk g H')
+    ax.axvspan(0, 2, color='0.9', zorder=0)
+    ax.set_xlabel('distance to the axis r / d (d: volume-equivalent diameter; grey: the central disc of D)')
+    ax.set_ylabel('floor pressure / (ρ_bulk g H)')
+    ax.set_title('floor pressure per ring, %d-grain %s piles, by grain shape (95 %% intervals over seeds)' % (n_grains, epoch),
+                 fontsize=8)
+    ax.legend(fontsize=7)
+    return pf.save_figure(fig, path)
+
+
+def analyse_shapes(records, out_dir):
+    """The grain-shape comparison, when the records hold another shape than spheres: per-shape
+    tables (``shape_table.md``), D and the slope against size per shape, and floor-pressure
+    profiles per shape at every size two shapes share. Returns the per-shape statistics ({} when
+    only spheres are there)."""
+    groups = by_shape(records)
+    if set(groups) <= {'sphere'}:
+        return {}
+    per_shape = shape_stats(records)
+    with open(os.path.join(out_dir, 'shape_table.md'), 'w') as f:
+        f.write(shape_table_markdown(per_shape, records))
+    fig_shapes_dip(per_shape, records, os.path.join(out_dir, 'shapes_dip.png'))
+    fig_shapes_slope(per_shape, records, os.path.join(out_dir, 'shapes_slope.png'))
+    shared = {}
+    for shape, recs in groups.items():
+        for n in {r['n_grains'] for r in recs}:
+            shared.setdefault(n, set()).add(shape)
+    for n in sorted(k for k, v in shared.items() if len(v) > 1):
+        fig_shapes_pressure(records, n, os.path.join(out_dir, 'shapes_pressure_n%d.png' % n))
+    return {shape: {'stats': st, 'relaxation_change': ch} for shape, (st, ch) in per_shape.items()}
+
+
 def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
     """Analyse every finished run of the ensemble in ``root`` (plus the stored per-run records of
     ``records_from`` directories for runs absent from ``root``); write the statistics, the table
@@ -479,6 +628,8 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
     if extra:
         log('added %d stored records (%s)' % (len(extra), ', '.join(sorted({r['run'] for r in extra}))))
     records += extra
+    every_shape = records
+    records = [r for r in records if grain_shape(r) == 'sphere']   # the size trend of the paper's grains
     stats, changes = aggregate(records)
     summary = {'root': os.path.abspath(root), 'n_runs_analysed': len({r['run'] for r in records}),
                'failed_runs': failed, 'unfinished_runs': unfinished, 'stats': stats,
@@ -487,6 +638,9 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
                                'dip_pooled': 'D = 1 - sum_p p_disc / sum_p p_ring over piles p; delete-one-pile jackknife, t interval, '
                                              'confidence = one-sided t probability that D > 0',
                                'units': 'SI unless the key says otherwise'}}
+    shapes = analyse_shapes(every_shape, out_dir)
+    if shapes:
+        summary['shapes'] = shapes
     with open(os.path.join(out_dir, 'ensemble_summary.json'), 'w') as f:
         json.dump(jsonable(summary), f, indent=1, sort_keys=True)
     table = table_markdown(stats, changes, size_labels(records))
