@@ -17,7 +17,7 @@ import yadecd.pile as pile
 from yadecd import scenes
 from yadecd.runs import runstate
 
-HEAP = dict(n_dimers=8, n_spheres=4, seed=3, tolerance=1e-12, maxIter=20000, warnUnconverged=False)   # some steps stop at maxIter: deterministic, the same in both runs
+HEAP = dict(n_dimers=8, n_spheres=4, seed=3, tolerance=1e-12, maxIter=20000, warnUnconverged=False)   # some steps stop at maxIter: deterministic for one contact order
 
 
 def state_arrays():
@@ -40,8 +40,8 @@ class TestClumpRunState(unittest.TestCase):
         O.run(1500, True)                     # landed and piling: clumps on clumps, spheres, walls
         cls.saved, cls.saved_contacts = state_arrays(), contacts()
         runstate.capture(cls.path, O.time, O.iter, {'note': np.array([1, 2, 3])})
-        O.run(200, True)
-        cls.straight = state_arrays()
+        O.run(60, True)
+        cls.straight_60 = state_arrays()
 
     @classmethod
     def tearDownClass(cls):
@@ -79,13 +79,18 @@ class TestClumpRunState(unittest.TestCase):
         self.assertEqual(contacts(), self.saved_contacts)
 
     def test_continues_as_uninterrupted(self):
-        """200 steps from the restored state end where the uninterrupted run does: positions to
-        1e-12 m and velocities to 1e-9 m/s (the contact order starts afresh; tolerance 1e-12)."""
+        """From the restored state the run repeats the uninterrupted one bit for bit for 60 steps
+        (measured: 72). Later steps are not compared: at step 73 after the restore a contact
+        created after it takes another place in the sweep order than in the uninterrupted run, and
+        that step is one of the heap's hardest (11 000 sweeps at tolerance 1e-12; near-redundant
+        frictional contacts of clumps on clumps), whose solution depends on the order: the two
+        runs' velocities are 2.6e-7 m/s apart after it and 3e-3 (spins) after 127 more steps,
+        positions 9e-9 m: the order dependence of that solve, after 72 bit-identical steps that show
+        the restored state to be the saved one. (Before the local solver took
+        the sliding branch by Newton's method the two orders happened to agree here to 1e-12 m.)"""
         self.restored()
-        O.run(200, True)
-        now = state_arrays()
-        np.testing.assert_allclose(now[:, :3], self.straight[:, :3], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(now[:, 3:9], self.straight[:, 3:9], rtol=0, atol=1e-9)
+        O.run(60, True)
+        np.testing.assert_array_equal(state_arrays(), self.straight_60)
 
     def test_other_clumps_refused(self):
         """A rebuilt scene whose clumps differ (a dimer's member counted as a lone sphere, a clump
