@@ -371,6 +371,28 @@ class TestShapeStatistics(unittest.TestCase):
             self.assertIn('32.00 ± 1.00', text)
 
 
+class TestGrainSpheres(unittest.TestCase):
+    def test_clumps_drawn_as_members(self):
+        """A snapshot with a sphere grain (id 4) and a clump grain (id 7, members at x = ±1 mm):
+        the sphere draws itself, the clump its two members, each with its grain's row; grains
+        not asked for are left out, and a snapshot without members draws its grains."""
+        from yadecd.analysis import figures as pf
+        snap = {'pos': np.array([[0.01, 0, 0.002], [0.0, 0, 0.003]]), 'radius': np.array([0.002, 0.0025]),
+                'ids': np.array([4, 7]), 'm_pos': np.array([[-0.001, 0, 0.003], [0.001, 0, 0.003]]),
+                'm_radius': np.array([0.002, 0.002]), 'm_grain': np.array([7, 7])}
+        c, r, row = pf.grain_spheres(snap, [0, 1])
+        self.assertEqual(row.tolist(), [0, 1, 1])
+        np.testing.assert_array_equal(c[1:, 0], [-0.001, 0.001])
+        np.testing.assert_array_equal(r, [0.002, 0.002, 0.002])
+        c, r, row = pf.grain_spheres(snap, [1])
+        self.assertEqual(row.tolist(), [1, 1])
+        c, r, row = pf.grain_spheres(snap, [0])
+        self.assertEqual((row.tolist(), r.tolist()), ([0], [0.002]))
+        plain = {k: snap[k] for k in ('pos', 'radius', 'ids')}
+        c, r, row = pf.grain_spheres(plain, [1, 0])
+        self.assertEqual((row.tolist(), r.tolist()), ([1, 0], [0.0025, 0.002]))
+
+
 class TestStoredRecords(unittest.TestCase):
     def test_stored_records_fill_in_absent_runs_only(self):
         """Stored records are added for runs the ensemble directory lacks, never twice, and a

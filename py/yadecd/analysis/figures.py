@@ -60,18 +60,36 @@ def _slice_limits(snaps, half_thickness):
     return (-xm * CM, xm * CM), (min(zs) * CM if zs else 0, max(zs) * CM if zs else 10)
 
 
+def grain_spheres(snap, rows):
+    """The spheres that draw the grains ``rows`` of a snapshot: ``(centres (k, 3), radii (k,),
+    row (k,))``, a grain's own sphere, or a clump's members (snapshot keys ``m_pos``, ``m_radius``,
+    ``m_grain``) where the snapshot has them, each with the row of its grain."""
+    rows = np.asarray(rows, dtype=int)
+    if 'm_grain' not in snap or not len(snap['m_grain']):
+        return snap['pos'][rows], snap['radius'][rows], rows
+    member_row = pa.body_index(snap, snap['m_grain'])
+    wanted = np.zeros(len(snap['pos']), dtype=bool)
+    wanted[rows] = True
+    has_members = np.zeros(len(snap['pos']), dtype=bool)
+    has_members[member_row[member_row >= 0]] = True
+    alone = rows[~has_members[rows]]
+    m = (member_row >= 0) & wanted[np.clip(member_row, 0, None)]
+    return (np.concatenate([snap['pos'][alone], np.asarray(snap['m_pos'], float).reshape(-1, 3)[m]]),
+            np.concatenate([snap['radius'][alone], np.asarray(snap['m_radius'], float)[m]]),
+            np.concatenate([alone, member_row[m]]))
+
+
 def _draw_slice(ax, snap, half_thickness, black=None, face='white', edge='k', lw=0.3):
-    """Grains of the slab |y| < half_thickness as circles in the x-z plane [cm] (true radii):
-    ``black`` mask drawn black, paving grains tan, the others ``face``."""
+    """Grains of the slab |y| < half_thickness as circles in the x-z plane [cm] (true radii; a
+    clump as its members): ``black`` mask drawn black, paving grains tan, the others ``face``."""
     colours = [face] * len(snap['pos'])
     for i in np.flatnonzero(snap['fixed']):
         colours[i] = PAVING_FACE
     if black is not None:
         for i in np.flatnonzero(black):
             colours[i] = 'k'
-    sel = np.flatnonzero(pa.slice_mask(snap, half_thickness))
-    pos, rad = snap['pos'][sel] * CM, snap['radius'][sel] * CM
-    _circles(ax, pos[:, 0], pos[:, 2], rad, [colours[i] for i in sel], edge=edge, lw=lw)
+    centres, radii, owner = grain_spheres(snap, np.flatnonzero(pa.slice_mask(snap, half_thickness)))
+    _circles(ax, centres[:, 0] * CM, centres[:, 2] * CM, radii * CM, [colours[i] for i in owner], edge=edge, lw=lw)
 
 
 def fig_speed(snap, path, elevation_deg=20.0, levels=None):
@@ -80,15 +98,15 @@ def fig_speed(snap, path, elevation_deg=20.0, levels=None):
     thresholds vmax·0.18^k in the legend). Writes PNG ``path``."""
     levels = levels or pa.speed_levels(snap)
     e = math.radians(elevation_deg)
-    p = snap['pos']
+    p, radii, owner = grain_spheres(snap, np.arange(len(snap['pos'])))   # a clump as its members
     X, Y = p[:, 0], p[:, 1] * math.sin(e) + p[:, 2] * math.cos(e)
     depth = p[:, 1] * math.cos(e) - p[:, 2] * math.sin(e)
-    order = np.argsort(-depth)                     # far grains first
+    order = np.argsort(-depth)                     # far spheres first
     grey = levels['grey']
-    faces = [PAVING_FACE if snap['fixed'][i] else (grey[i],) * 3 for i in order]
+    faces = [PAVING_FACE if snap['fixed'][owner[i]] else (grey[owner[i]],) * 3 for i in order]
     fig = new_figure(8, 5)
     ax = fig.add_subplot(1, 1, 1)
-    _circles(ax, X[order] * CM, Y[order] * CM, snap['radius'][order] * CM, faces, edge=(0.4,) * 3, lw=0.15)
+    _circles(ax, X[order] * CM, Y[order] * CM, radii[order] * CM, faces, edge=(0.4,) * 3, lw=0.15)
     ax.set_aspect('equal')
     ax.autoscale_view()
     ax.set_xlabel('x [cm]')
