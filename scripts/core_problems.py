@@ -9,7 +9,7 @@ Cases (see yadecd.scenes): a sphere rolling without slipping and one sliding on 
 impulses), a column of 10 and one of 5 with rotations blocked (general kernel; the weight above
 each contact, exact), a 1:100 mass-ratio stack (exact), a hyperstatic FCC block at rest in a box of walls (floor
 and walls together carry its weight, exact), a binary collision with restitution, a fed 300-grain pile step
-(when a snapshot is given) and a step of a pile of clumps (when a clump pile run is given: its newest checkpoint,
+(when a snapshot is given), a sheared periodic cell (contacts through periodic images) and a step of a pile of clumps (when a clump pile run is given: its newest checkpoint,
 loaded as ``PileRun.load`` does, the run itself untouched).
 """
 import argparse
@@ -115,6 +115,22 @@ for _ in range(1000):  # step to the landing: the open contact's first impulse, 
         break
 assert landed and landed[0].phys.approachVelocity.norm() > 0, 'the binary collision did not land within a step'
 save('binary_restitution', 'two spheres colliding obliquely, en 0.6, et 0.2: the step after the landing (restitution on the landing velocity)')
+
+# a periodic cell compressed and sheared by its velGrad: contacts through the images, whose shift
+# velocity (Cell.intrShiftVel) is part of their relative velocity
+from yade import pack, Matrix3  # noqa: E402
+O.reset()
+cloud = pack.SpherePack()
+cloud.makeCloud((0, 0, 0), (0.04, 0.04, 0.04), rMean=0.004, rRelFuzz=0.2, num=100, periodic=True, seed=3)  # places 66
+cloud.toSimulation(material=scenes.material(0.4))
+O.engines = yadecd.engines(gravity=(0, 0, 0), tolerance=1e-12, maxIter=100000)
+O.dt = 1e-4
+O.cell.velGrad = Matrix3(-5, 2, 0, 0, -5, 0, 0, 0, -5)
+through = lambda: sum(1 for i in O.interactions if i.isReal and i.geom.penetrationDepth > 0 and tuple(i.cellDist) != (0, 0, 0))  # noqa: E731
+while through() < 10 and O.iter < 2000:       # compressed until ten contacts touch through an image
+    O.run(10, True)
+save('periodic_shear', 'a periodic cell of %d spheres compressed and sheared by velGrad, %d contacts touching through an image'
+     % (len(O.bodies), through()))
 
 if args.pile_snapshot:
     from yadecd import pile

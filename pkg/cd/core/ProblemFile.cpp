@@ -99,7 +99,6 @@ namespace cd {
 		o << "contacts " << set.size() << '\n';
 		for (size_t k = 0; k < set.size(); ++k) {
 			const ContactInfo& c = set.info[k];
-			if (c.shifted) throw std::invalid_argument("problem files hold no periodic images yet: a periodic scene's step cannot be saved.");
 			o << "contact " << c.b1 << ' ' << c.b2 << ' ' << set.state[k].mu << ' ' << set.state[k].status;
 			put(o, c.frame);
 			put(o, c.c1);
@@ -108,6 +107,7 @@ namespace cd {
 			o << ' ' << c.height << ' ' << c.gapI << ' ' << c.gapM << ' ' << c.refR << ' ' << c.allowance << ' ' << c.en << ' ' << c.et;
 			put(o, c.approach);
 			put(o, c.warmStart);
+			if (c.shifted) put(o, c.shift); // body 2 through its periodic image: an optional trailing shift velocity
 			o << '\n';
 		}
 		out << o.str();
@@ -196,6 +196,10 @@ namespace cd {
 			c.approach      = l.vec();
 			c.warmStart     = l.vec();
 			c.origin        = k;
+			if (l.more()) { // a periodic image's shift velocity (absent: body 2 itself)
+				c.shifted = true;
+				c.shift   = l.vec();
+			}
 			l.end();
 			if (c.b1 < 0 || c.b1 >= nb || c.b2 < 0 || c.b2 >= nb || c.b1 == c.b2) l.fail("a contact between unknown bodies");
 			pb.contacts.add(c, mu, st);

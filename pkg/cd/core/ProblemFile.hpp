@@ -13,6 +13,7 @@
 //   body id dynamic isoInvM isoInvI v(3) w(3) invM(3) invI(9, row-major) vi(3) wi(3)        (N lines)
 //   contacts M
 //   contact b1 b2 mu status frame(9) c1(3) c2(3) point(3) height gapI gapM refR allowance en et approach(3) warmStart(3)
+//           [shift(3)]   (body 2 through its periodic image: the image's shift velocity, Cell.intrShiftVel; absent: none)
 //   ... then any number of lines the host appends, kept as text (Problem::extra), e.g.
 //   expect ...           (tests/core: exact answers, the engine's own results)
 //
