@@ -3,8 +3,8 @@
 at other time steps and tolerances, and their observables compared with the paper's ensemble.
 
     /usr/bin/python3 scripts/protocol_study.py run ROOT --size 1000 --seeds 1-4 \\
-        --settings h1e-3,h5e-4,tol3e-3,h1e-3_tol3e-3,paper [--jobs 2] [--relax 1]
-    /usr/bin/python3 scripts/protocol_study.py analyse ROOT --size 1000 \\
+        --settings h1e-3,h5e-4,tol3e-3,h1e-3_tol3e-3,paper [--jobs 2] [--relax 1] [--grain-shape dimer]
+    /usr/bin/python3 scripts/protocol_study.py analyse ROOT --size 1000 [--grain-shape dimer] \\
         [--reference docs/data/ensemble_runs] [--out docs/data/protocol_study] [--figure docs/figures/protocol_study.png]
 
 ``run`` runs one ensemble per setting in ROOT/<setting> (yadecd.runs.ensemble: one thread per pile,
@@ -12,7 +12,8 @@ at other time steps and tolerances, and their observables compared with the pape
 reference at the end of the feed and after the relaxation (yadecd.analysis.protocols: Welch intervals,
 differences in units of the seed spread); the reference is the paper-setting runs found in
 ROOT/paper plus the stored per-run records of ``--reference`` (runs of the same grain count).
-Settings: yadecd.analysis.protocols.SETTINGS.
+Settings: yadecd.analysis.protocols.SETTINGS. ``--grain-shape`` studies piles of clumps
+(yadecd.pile.grains): the runs and the reference are that shape's alone.
 """
 import argparse
 import json
@@ -35,9 +36,11 @@ def main(argv=None):
     r.add_argument('--settings', default='h1e-3,h5e-4,tol3e-3,h1e-3_tol3e-3')
     r.add_argument('--relax', type=float, default=1.0)
     r.add_argument('--jobs', type=int, default=2)
+    r.add_argument('--grain-shape', default='sphere', help='grains of the piles (yadecd.pile.grains.SHAPES)')
     a = sub.add_parser('analyse')
     a.add_argument('root')
     a.add_argument('--size', type=int, default=1000)
+    a.add_argument('--grain-shape', default='sphere', help='the piles compared: this shape\'s runs and reference records')
     a.add_argument('--reference', action='append', default=[],
                    help='directory of stored per-run records of the paper setting (default docs/data/ensemble_runs)')
     a.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'protocol_study'))
@@ -60,7 +63,7 @@ def main(argv=None):
         for name in names:
             print('protocol study: setting %s (%s)' % (name, ' '.join(protocol.setting_options(name))), flush=True)
             protocol.plan_and_run(args.root, name, args.size, seeds, args.relax, REPO, jobs=args.jobs,
-                                  log=lambda m: print(m, flush=True))
+                                  log=lambda m: print(m, flush=True), grain_shape=args.grain_shape)
             print('\n'.join(ens.status_lines(os.path.join(args.root, name))), flush=True)
         return 0
 
@@ -70,11 +73,11 @@ def main(argv=None):
         d = os.path.join(args.root, name)
         if os.path.isdir(d):
             recs, failed, unfinished = pea.collect(d, os.path.join(d, 'analysis'))
-            records[name] = [x for x in recs if x['n_grains'] == args.size]
+            records[name] = [x for x in recs if x['n_grains'] == args.size and pea.grain_shape(x) == args.grain_shape]
             if failed or unfinished:
                 print('%s: failed %s, unfinished %s (left out)' % (name, sorted(failed), unfinished))
     here = {(x['run'], x['epoch']) for x in records.get('paper', [])}
-    stored = [x for x in pea.stored_records(refs, here) if x['n_grains'] == args.size]
+    stored = [x for x in pea.stored_records(refs, here) if x['n_grains'] == args.size and pea.grain_shape(x) == args.grain_shape]
     reference = records.get('paper', []) + stored
     # the paper-setting piles re-run here must reproduce the stored records of the same seeds
     same = []

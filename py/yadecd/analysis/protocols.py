@@ -130,10 +130,11 @@ def compare(test_records, ref_records, keys=None):
     return out
 
 
-def plan_and_run(root, name, n_grains, seeds, relax, repo, jobs=2, log=print):
-    """Run (or resume) the ensemble of one setting in ``root/name``."""
+def plan_and_run(root, name, n_grains, seeds, relax, repo, jobs=2, log=print, grain_shape='sphere'):
+    """Run (or resume) the ensemble of one setting in ``root/name`` (grains of ``grain_shape``)."""
     e = ens.Ensemble(os.path.join(root, name))
-    e.plan([n_grains], seeds, relax, setting_options(name))
+    shape = [] if grain_shape == 'sphere' else ['--grain-shape', grain_shape]
+    e.plan([n_grains], seeds, relax, setting_options(name) + shape)
     return ens.run_ensemble(e.root, repo, jobs=jobs, log=log)
 
 
