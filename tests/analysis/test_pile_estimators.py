@@ -393,6 +393,20 @@ class TestGrainSpheres(unittest.TestCase):
         self.assertEqual((row.tolist(), r.tolist()), ([1, 0], [0.0025, 0.002]))
 
 
+class TestWallLoad(unittest.TestCase):
+    def test_load_on_the_plane_between_paving_grains(self):
+        """Grains pressing on a body that is not a grain (the wall, id 0): 2 N from a grain that is
+        body 1 (force on the wall, body 2, is -2 N vertical), 3 N from a grain that is body 2 (the
+        force on it is +3 N); a paving grain on the wall and grain-grain contacts do not count."""
+        from yadecd.analysis import ground
+        snap = {'time': 1.0, 'g': 9.81, 'rho': 1000.0, 'pos': np.zeros((3, 3)), 'radius': np.full(3, 0.002),
+                'vel': np.zeros((3, 3)), 'fixed': np.array([False, False, True]), 'birth': np.zeros(3),
+                'ids': np.array([5, 6, 7]), 'c_id1': np.array([5, 0, 7, 5]), 'c_id2': np.array([0, 6, 0, 6]),
+                'c_point': np.zeros((4, 3)), 'c_normal': np.tile([0.0, 0, 1], (4, 1)),
+                'c_force': np.array([[0.1, 0, -2.0], [0, 0.2, 3.0], [0, 0, -50.0], [0, 0, -7.0]])}
+        self.assertAlmostEqual(ground.wall_load(snap), 5.0, delta=1e-12)
+
+
 class TestStoredRecords(unittest.TestCase):
     def test_stored_records_fill_in_absent_runs_only(self):
         """Stored records are added for runs the ensemble directory lacks, never twice, and a

@@ -32,7 +32,7 @@ from .stats import (linear_fit, robust_line, t_quantile_975, t_cdf, mean_interva
 from .forces import (BandDensity, band_geometry, band_segment, band_force_density, reciprocal_pairs,
                      reciprocal_cuts, line_angles, cylindrical_cut_directions, layer_directions,
                      line_angle_between, fossil_law)
-from .ground import ground_pressure, central_dip, DIP_DISC_D, DIP_RING_D
+from .ground import ground_pressure, central_dip, wall_load, DIP_DISC_D, DIP_RING_D
 from .fabric import contact_orientation_histogram, fabric_tensor, force_change
 
 __all__ = [n for n in dir() if not n.startswith('_') and n not in (

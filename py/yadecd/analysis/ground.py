@@ -5,7 +5,7 @@ paving's loads, and the central dip with its interval.
 import math
 import numpy as np
 
-from .snapshots import as_snapshot, grain_contacts, grain_masses, mean_diameter
+from .snapshots import as_snapshot, body_index, grain_contacts, grain_masses, mean_diameter
 from .stats import jackknife_ratio_dip
 from .surface import profile_and_slope
 
@@ -20,6 +20,23 @@ def _floor_loads(snap):
     # c_force acts on body 2: on the paving grain when body 2 is the fixed one
     on_paving = np.where(f2[mixed][:, None], cont['force'][mixed], -cont['force'][mixed])
     return cont['point'][mixed], -on_paving[:, 2]
+
+
+def wall_load(snap):
+    """Downward load [N] of the pile grains on bodies that are not grains of the snapshot (the
+    floor wall under the paving): the sum over contacts between a non-fixed grain and such a body
+    of the vertical force pressing on that body. :func:`ground_pressure` counts the paving grains
+    only; this is what reaches the plane between them (more for clumps, whose members are smaller
+    than the paving grains)."""
+    snap = as_snapshot(snap)
+    i1, i2 = body_index(snap, snap['c_id1']), body_index(snap, snap['c_id2'])
+    load = 0.0
+    for grain, other, sign in ((i1, i2, 1.0), (i2, i1, -1.0)):
+        pick = (grain >= 0) & (other < 0)
+        pick[pick] = ~snap['fixed'][grain[pick]]
+        # c_force acts on body 2: on the wall when the wall is body 2 (sign +1 here: grain is body 1)
+        load += float(-(sign * snap['c_force'][pick, 2]).sum())
+    return load
 
 
 def _ring_sums(r, phi, load, ring_width, n_rings, n_sectors):
