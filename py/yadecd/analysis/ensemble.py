@@ -508,32 +508,45 @@ def shape_table_markdown(per_shape, records):
     return '\n'.join(parts)
 
 
+def _piles(n):
+    """'8 piles', or '1 pile, no interval' (one realisation has no spread over seeds)."""
+    return '1 pile, no interval' if n == 1 else '%d piles' % n
+
+
 def _shape_offsets(shapes):
     k = len(shapes)
     return {shape: 0.04 * (i - (k - 1) / 2) for i, shape in enumerate(shapes)}
 
 
 def fig_shapes_dip(per_shape, records, path, epoch='relaxed'):
-    """Central dip D against pile size, one series per grain shape: every pile (dots) and the
-    pooled D over seeds with its 95 % interval (jackknife over piles)."""
+    """Central dip D against pile size, one series per grain shape: every pile (dots), the pooled
+    D over seeds with its 95 % interval (jackknife over piles) where a size has two piles or more,
+    and where it has one, that pile's own interval over sectors (open diamonds): one realisation
+    has no spread over seeds."""
     fig = pf.new_figure(7, 4.2)
     ax = fig.add_subplot(1, 1, 1)
     offsets = _shape_offsets(list(per_shape))
     for shape, (stats, _) in per_shape.items():
         colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
         f = 1 + offsets[shape]
-        pts = [(r['n_grains'], r['dip_D']) for r in records if grain_shape(r) == shape and r['epoch'] == epoch
-               and r.get('dip_D') is not None]
-        if pts:
-            ax.plot([p[0] * f for p in pts], [p[1] for p in pts], '.', color=colour, ms=3, alpha=0.5)
-        rows = [(g['n_grains'] if 'n_grains' in g else int(k.split('_')[0]), g) for k, g in stats.items() if k.endswith('_' + epoch)]
+        mine = [r for r in records if grain_shape(r) == shape and r['epoch'] == epoch and r.get('dip_D') is not None]
+        if mine:
+            ax.plot([r['n_grains'] * f for r in mine], [r['dip_D'] for r in mine], '.', color=colour, ms=3, alpha=0.5)
+        rows = sorted((int(k.split('_')[0]), g) for k, g in stats.items() if k.endswith('_' + epoch))
+        label = '%s (piles per size: %s)' % (shape, ', '.join(str(g['n_runs']) for _, g in rows))
         xs = [(n, g['dip_pooled']) for n, g in rows if np.isfinite(g['dip_pooled']['se'])]
         if xs:
             n, d = np.array([x[0] for x in xs]), [x[1] for x in xs]
             D = np.array([v['D'] for v in d])
             lo, hi = np.array([v['ci95'][0] for v in d]), np.array([v['ci95'][1] for v in d])
-            ax.errorbar(n * f, D, yerr=[D - lo, hi - D], fmt=marker + '-', color=colour, capsize=3, lw=0.8,
-                        label='%s (%s piles per size)' % (shape, '/'.join(str(g['n_runs']) for _, g in sorted(rows, key=lambda t: t[0]))))
+            ax.errorbar(n * f, D, yerr=[D - lo, hi - D], fmt=marker + '-', color=colour, capsize=3, lw=0.8, label=label)
+            label = None
+        lone = single_pile_dips(mine, epoch)
+        if lone:
+            x, d, lo, hi = map(np.array, zip(*lone))
+            ax.errorbar(x * f, d, yerr=[d - lo, hi - d], fmt='d', color=colour, mfc='none', capsize=3, ls='none',
+                        elinewidth=0.8, label=label if label else None)
+    ax.plot([], [], 'd', color='0.4', mfc='none', label='one pile: its own 95 % interval (sectors)')
     ax.axhline(0, color='k', lw=0.8)
     _size_axis(ax, records)
     ax.set_xlabel('grains')
@@ -558,7 +571,9 @@ def fig_shapes_slope(per_shape, records, path, epoch='relaxed'):
                 ax.plot(r['n_grains'] * f, r['slope_deg'], '.', color=colour, ms=3, alpha=0.5)
         ns, m, lo, hi = _series(stats, 'slope_deg', epoch)
         if len(ns):
-            ax.errorbar(ns * f, m, yerr=[m - lo, hi - m], fmt=marker + '-', color=colour, capsize=3, lw=0.8, label=shape)
+            runs = [stats['%d_%s' % (n, epoch)]['n_runs'] for n in ns]
+            ax.errorbar(ns * f, m, yerr=[m - lo, hi - m], fmt=marker + '-', color=colour, capsize=3, lw=0.8,
+                        label='%s (piles per size: %s; one pile: no interval)' % (shape, ', '.join(str(k) for k in runs)))
     ax.axhline(26, color='k', ls='--', lw=0.8, label='paper (spheres, 14 000 grains)')
     _size_axis(ax, records)
     ax.set_xlabel('grains')
@@ -585,12 +600,12 @@ def fig_shapes_pressure(records, n_grains, path, epoch='relaxed'):
         hi = np.array([s_['ci95'][1] if np.isfinite(s_['ci95'][1]) else s_['mean'] for s_ in st])
         shift = (k - (len(groups) - 1) / 2) * 0.12
         ax.errorbar(x + shift, mean, yerr=[mean - lo, hi - mean], fmt=marker + '-', color=colour, ms=3, capsize=2,
-                    label='%s (%d piles)' % (shape, len(recs)))
+                    label='%s (%s)' % (shape, _piles(len(recs))))
     if not groups:
         ax.text(0.5, 0.5, 'no %s pile of %d grains' % (epoch, n_grains), ha='center', va='center', transform=ax.transAxes)
     ax.axhline(1, color='k', ls=':', lw=0.8, label='hydrostatic ρ_bulk g H')
     ax.axvspan(0, 2, color='0.9', zorder=0)
-    ax.set_xlabel('distance to the axis r / d (d: volume-equivalent diameter; grey: the central disc of D)')
+    ax.set_xlabel('r / d (d: mean volume-equivalent diameter; grey: the central disc of D)')
     ax.set_ylabel('floor pressure / (ρ_bulk g H)')
     ax.set_title('floor pressure per ring, %d-grain %s piles, by grain shape (95 %% intervals over seeds)' % (n_grains, epoch),
                  fontsize=8)
