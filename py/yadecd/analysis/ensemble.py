@@ -513,9 +513,18 @@ def _piles(n):
     return '1 pile, no interval' if n == 1 else '%d piles' % n
 
 
-def _shape_offsets(shapes):
-    k = len(shapes)
-    return {shape: 0.04 * (i - (k - 1) / 2) for i, shape in enumerate(shapes)}
+def _one_axes():
+    fig = pf.new_figure(7, 4.2)
+    return fig, fig.add_subplot(1, 1, 1)
+
+
+def _shape_series(per_shape):
+    """(shape, its statistics, colour, marker, x factor) for each shape of :func:`shape_stats`'
+    result: the factor spreads the shapes' points apart around each size on the log axis."""
+    k = len(per_shape)
+    for i, (shape, (stats, _)) in enumerate(per_shape.items()):
+        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
+        yield shape, stats, colour, marker, 1 + 0.04 * (i - (k - 1) / 2)
 
 
 def fig_shapes_dip(per_shape, records, path, epoch='relaxed'):
@@ -523,12 +532,8 @@ def fig_shapes_dip(per_shape, records, path, epoch='relaxed'):
     D over seeds with its 95 % interval (jackknife over piles) where a size has two piles or more,
     and where it has one, that pile's own interval over sectors (open diamonds): one realisation
     has no spread over seeds."""
-    fig = pf.new_figure(7, 4.2)
-    ax = fig.add_subplot(1, 1, 1)
-    offsets = _shape_offsets(list(per_shape))
-    for shape, (stats, _) in per_shape.items():
-        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
-        f = 1 + offsets[shape]
+    fig, ax = _one_axes()
+    for shape, stats, colour, marker, f in _shape_series(per_shape):
         mine = [r for r in records if grain_shape(r) == shape and r['epoch'] == epoch and r.get('dip_D') is not None]
         if mine:
             ax.plot([r['n_grains'] * f for r in mine], [r['dip_D'] for r in mine], '.', color=colour, ms=3, alpha=0.5)
@@ -560,12 +565,8 @@ def fig_shapes_dip(per_shape, records, path, epoch='relaxed'):
 def fig_shapes_slope(per_shape, records, path, epoch='relaxed'):
     """Flank slope against pile size, one series per grain shape (mean over seeds, 95 %
     interval; dots: single piles); the paper's 26°."""
-    fig = pf.new_figure(7, 4.2)
-    ax = fig.add_subplot(1, 1, 1)
-    offsets = _shape_offsets(list(per_shape))
-    for shape, (stats, _) in per_shape.items():
-        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
-        f = 1 + offsets[shape]
+    fig, ax = _one_axes()
+    for shape, stats, colour, marker, f in _shape_series(per_shape):
         for r in records:
             if grain_shape(r) == shape and r['epoch'] == epoch and r.get('slope_deg') is not None:
                 ax.plot(r['n_grains'] * f, r['slope_deg'], '.', color=colour, ms=3, alpha=0.5)
@@ -586,8 +587,7 @@ def fig_shapes_slope(per_shape, records, path, epoch='relaxed'):
 def fig_shapes_pressure(records, n_grains, path, epoch='relaxed'):
     """Floor pressure over the hydrostatic ρ_bulk·g·H per ring at one pile size, one curve per
     grain shape (mean over seeds, 95 % intervals)."""
-    fig = pf.new_figure(7, 4.2)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = _one_axes()
     groups = by_shape([r for r in records if r['n_grains'] == n_grains and r['epoch'] == epoch])
     for k, (shape, recs) in enumerate(groups.items()):
         colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
