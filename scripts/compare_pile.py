@@ -3,6 +3,7 @@ the CD engine and with YADE's linear soft contacts at several stiffnesses, side 
 
     scripts/yade -n -x scripts/compare_pile.py [--grains 300] [--relax 0.5] [--out out/compare_pile]
                                               [--cases cd,cd_plain,cd_loose,md_1e6,md_1e7,md_1e8] [--plot-only]
+                                              [--grain-shape dimer]
 
 Every case builds the same protocol (same seed, so the same feed positions) and is analysed by
 the same pile analysis (yadecd.analysis.report.analyse). Recorded per case: wall time, steps, wall
@@ -24,6 +25,7 @@ parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--grains', type=int, default=300)
 parser.add_argument('--relax', type=float, default=0.5)
 parser.add_argument('--seed', type=int, default=1)
+parser.add_argument('--grain-shape', default='sphere', help='grains of both methods (yadecd.pile.grains.SHAPES)')
 parser.add_argument('--out', default=os.path.join(REPO, 'out', 'compare_pile'))
 parser.add_argument('--cases', default='cd,cd_plain,cd_loose,md_1e6,md_1e7,md_1e8')
 parser.add_argument('--plot-only', action='store_true', help='redraw from OUT/compare_pile.csv')

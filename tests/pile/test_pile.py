@@ -325,6 +325,25 @@ class TestPileMethods(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_md_pile_of_clumps(self):
+        """The MD protocol with clump grains: YADE's NewtonIntegrator moves the same clumps, with
+        the union's mass, and the snapshot counts them as grains."""
+        tmp = tempfile.mkdtemp(prefix='cd-pile-md-clumps-')
+        try:
+            pile.run(tmp, n_grains=6, relax=0.02, snap_every=1.0, seed=2, method='MD', young=1e6, grain_shape='dimer',
+                     log=lambda s: None)
+            clumps = [b for b in O.bodies if b.isClump]
+            self.assertEqual(len(clumps), 6)
+            for b in clumps:
+                a = O.bodies[sorted(b.shape.members)[0]].shape.radius
+                self.assertAlmostEqual(b.state.mass / (1000 * pile.SHAPES['dimer']['volume'] * a ** 3), 1, delta=1e-12)
+            snaps = [f for f in os.listdir(tmp) if f.startswith('snap_')]
+            snap = np.load(os.path.join(tmp, snaps[-1]))
+            self.assertEqual(sorted(snap['ids'][~snap['fixed']].tolist()), sorted(b.id for b in clumps))
+            self.assertEqual(len(snap['m_grain']), 12)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_unknown_method(self):
         """Rejected before anything is built: the current scene is left as it was."""
         tmp = tempfile.mkdtemp(prefix='cd-pile-bad-')

@@ -72,7 +72,8 @@ def run_case(key, opts):
     label, settings = CASES[key]
     run_dir = os.path.join(opts.out, key)
     shutil.rmtree(run_dir, ignore_errors=True)
-    p = pile.run(run_dir, n_grains=opts.grains, relax=opts.relax, seed=opts.seed, snap_every=1e9, **settings)
+    p = pile.run(run_dir, n_grains=opts.grains, relax=opts.relax, seed=opts.seed, snap_every=1e9,
+                 grain_shape=getattr(opts, 'grain_shape', 'sphere'), **settings)
     omax, omean = overlaps()
     s = report.analyse(run_dir, os.path.join(run_dir, 'figures'))
     sim = O.time
@@ -94,13 +95,19 @@ def plot(rows, opts):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6))
+    missing = []
     for row in rows:
         with open(os.path.join(opts.out, row['case'], 'figures', 'summary.json')) as f:
             s = json.load(f)
         prof = s.get('rings') or {}
         r, p = prof.get('r_mid_m'), prof.get('pressure_Pa')
-        if r and p:
-            a1.plot(np.array(r) * 100, np.array(p) * 10 / float(row['hydrostatic_dPa']), 'o-', ms=3, label=row['label'])
+        hydro = row['hydrostatic_dPa']
+        if r and p and hydro not in (None, '', 'None'):
+            a1.plot(np.array(r) * 100, np.array(p) * 10 / float(hydro), 'o-', ms=3, label=row['label'])
+        else:   # a pile too small for an apex height has no hydrostatic reference
+            missing.append(row['label'])
+    if missing:
+        a1.text(0.02, 0.02, 'no profile (no hydrostatic reference): ' + '; '.join(missing), transform=a1.transAxes, fontsize=7)
     a1.axhline(1, color='k', lw=0.8, ls=':')
     a1.set_xlabel('r [cm]')
     a1.set_ylabel('ground pressure / hydrostatic ρ_bulk g H')
