@@ -498,13 +498,25 @@ def shape_stats(records):
     return {shape: aggregate(recs) for shape, recs in by_shape(records).items()}
 
 
+def shared_sizes(records):
+    """Grain counts that records of two shapes or more share (sorted)."""
+    shapes = {}
+    for r in records:
+        shapes.setdefault(r['n_grains'], set()).add(grain_shape(r))
+    return sorted(n for n, k in shapes.items() if len(k) > 1)
+
+
 def shape_table_markdown(per_shape, records):
-    """One ensemble table per grain shape (:func:`table_markdown`), under a heading each."""
+    """One ensemble table per grain shape (:func:`table_markdown`), under a heading each, over the
+    sizes that two shapes share (every size when none is shared)."""
     parts = []
     groups = by_shape(records)
+    sizes = set(shared_sizes(records))
     for shape, (stats, changes) in per_shape.items():
+        keep = lambda key: not sizes or int(key.split('_')[0]) in sizes  # noqa: E731
         labels = {n: '%s %s' % (label, shape) for n, label in size_labels(groups[shape]).items()}
-        parts.append('## %s\n\n%s' % (shape, table_markdown(stats, changes, labels)))
+        parts.append('## %s\n\n%s' % (shape, table_markdown({k: v for k, v in stats.items() if keep(k)},
+                                                              {k: v for k, v in changes.items() if keep(k)}, labels)))
     return '\n'.join(parts)
 
 
@@ -626,11 +638,7 @@ def analyse_shapes(records, out_dir):
         f.write(shape_table_markdown(per_shape, records))
     fig_shapes_dip(per_shape, records, os.path.join(out_dir, 'shapes_dip.png'))
     fig_shapes_slope(per_shape, records, os.path.join(out_dir, 'shapes_slope.png'))
-    shared = {}
-    for shape, recs in groups.items():
-        for n in {r['n_grains'] for r in recs}:
-            shared.setdefault(n, set()).add(shape)
-    for n in sorted(k for k, v in shared.items() if len(v) > 1):
+    for n in shared_sizes(records):
         fig_shapes_pressure(records, n, os.path.join(out_dir, 'shapes_pressure_n%d.png' % n))
     return {shape: {'stats': st, 'relaxation_change': ch} for shape, (st, ch) in per_shape.items()}
 
