@@ -369,6 +369,13 @@ class TestShapeStatistics(unittest.TestCase):
             self.assertIn('## dimer', text)
             self.assertIn('| 1000 dimer grains, relaxed (3 seeds) |', text)
             self.assertIn('32.00 ± 1.00', text)
+            # a sphere size no other shape has stays out of the shape tables
+            small = [dict(rec(300, s, 'relaxed', 24.0, 1.0, 1.0), rings_r_over_d=[1.0], rings_p_over_hydrostatic=[0.9])
+                     for s in (1, 2)]
+            self.assertEqual(pea.shared_sizes(spheres + dimers + small), [1000])
+            pea.analyse_shapes(spheres + dimers + small, d)
+            with open(os.path.join(d, 'shape_table.md')) as f:
+                self.assertNotIn('300 sphere grains', f.read())
 
 
 class TestGrainSpheres(unittest.TestCase):
