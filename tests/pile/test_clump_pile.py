@@ -141,6 +141,15 @@ class TestClumpPile(unittest.TestCase):
         self.assertGreaterEqual(saved['n_pile_grains'], 27)
         self.assertTrue(0.8 < saved['floor_load_over_weight'] <= 1.05)
 
+    def test_snapshot_scenes_are_for_spheres(self):
+        """A scene is rebuilt from a snapshot for sphere piles only: a clump pile's snapshot is
+        refused with its name and the way to its state (the cone state refuses clumps too)."""
+        snap = sorted(f for f in os.listdir(self.straight) if f.startswith('snap_'))[-1]
+        with self.assertRaisesRegex(ValueError, 'snapshot of clump grains.*PileRun.load'):
+            pile.scene_from_snapshot(os.path.join(self.straight, snap))
+        with self.assertRaisesRegex(ValueError, "cone_state builds piles of spheres only, not grain_shape='tetra'"):
+            pile.cone_state(os.path.join(self.tmp, 'cone'), n_grains=50, grain_shape='tetra', log=lambda s: None)
+
     def test_bad_shape(self):
         with self.assertRaisesRegex(ValueError, "pile parameter grain_shape must be one of 'dimer', 'sphere', 'tetra'"):
             pile.run(os.path.join(self.tmp, 'bad'), n_grains=3, grain_shape='cube', **QUIET)
