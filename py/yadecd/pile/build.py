@@ -68,18 +68,10 @@ def build_scene(p, floor=None):
     return len(O.bodies) - 1
 
 
-def add_grain(x, y, z, r, grain_shape='sphere', rotation=None):
-    """Append one pile grain (the run's material, at rest) centred at (x, y, z) with the volume
-    of a sphere of radius ``r``: a sphere, or a clump of the shape ``grain_shape``
-    (:mod:`.grains`) turned by the matrix ``rotation`` (default: the template's frame). Returns
-    the grain's id (a clump's own id; its members come just before it)."""
-    if grain_shape == 'sphere':
-        return O.bodies.append(utils.sphere((x, y, z), r, material=O.materials[0]))
-    a = grains.member_radius(grain_shape, 2 * r)
-    offsets = grains.shape(grain_shape)['offsets'] * a
-    if rotation is not None:
-        offsets = offsets @ np.asarray(rotation).T
-    return add_clump(np.array([x, y, z]) + offsets, a, grain_shape)
+def add_grain(x, y, z, r):
+    """Append one sphere grain (the run's material, at rest); returns its id. A clump grain:
+    :func:`add_clump`."""
+    return O.bodies.append(utils.sphere((x, y, z), r, material=O.materials[0]))
 
 
 def add_clump(centres, a, grain_shape):
@@ -99,14 +91,12 @@ def set_clump_mass(clump, grain_shape, a):
     goes to the frame axis along which the members lie."""
     mass, inertia = grains.mass_properties(grain_shape, a, O.materials[0].density)
     axis = grains.shape(grain_shape)['axis']
-    if axis >= 0:
+    if axis >= 0:   # axisymmetric: the transverse moment everywhere, the axial one along the members
         rel = np.array([tuple(pos) for pos, _ in clump.shape.members.values()])
         along = int(np.argmax(np.abs(rel).max(axis=0)))
-        order = [axis] + [k for k in range(3) if k != axis]  # template index -> frame index
-        frame = [0.0] * 3
-        for k, idx in zip([along] + [k for k in range(3) if k != along], order):
-            frame[k] = float(inertia[idx])
-        inertia = frame
+        axial, transverse = inertia[axis], inertia[(axis + 1) % 3]
+        inertia = np.full(3, transverse)
+        inertia[along] = axial
     clump.state.mass = float(mass)
     clump.state.inertia = Vector3(*[float(v) for v in inertia])
 
@@ -316,12 +306,12 @@ class Feeder:
             z = creation_height(x, y, r, centres, radii)
             bid = add_grain(x, y, z, r)
             members = [bid]
-        else:
+        else:   # the template scaled to the drawn volume, turned at random
             rotation = grains.random_rotation(rng)
             am = grains.member_radius(self.shape, 2 * r)
             offsets = grains.shape(self.shape)['offsets'] * am @ rotation.T
             z = grains.resting_height(x, y, offsets, np.full(len(offsets), am), centres, radii)
-            bid = add_grain(x, y, z, r, self.shape, rotation)
+            bid = add_clump(np.array([x, y, z]) + offsets, am, self.shape)
             members = sorted(O.bodies[bid].shape.members)
         self.births[bid] = self.clock.time()
         self.near.extend(members)

@@ -247,11 +247,14 @@ class PileRun:
                                          'grains)' % shape)
         floor = np.column_stack([data['pos'][1:n_paving + 1, :2], data['radius'][1:n_paving + 1]])
         build_scene(p, floor=floor)
+        members = {}                  # clump id -> its members' rows, in id order
+        for k in np.flatnonzero(clump_of >= 0):
+            members.setdefault(int(clump_of[k]), []).append(k)
         for k in range(n_paving + 1, len(ids)):
             if kind[k] == 1 and clump_of[k] < 0:
                 add_grain(*data['pos'][k], data['radius'][k])
             elif kind[k] == 2:
-                rows = np.flatnonzero(clump_of == ids[k])
+                rows = members[int(ids[k])]
                 add_clump(data['pos'][rows], float(data['radius'][rows[0]]), shape)
         runstate.restore_bodies(data)
         restored, skipped = runstate.restore_contacts(data)
