@@ -2,7 +2,7 @@
 
     /usr/bin/python3 scripts/shear_figures.py out/shear [--docs]
 
-Writes OUT/rheology.md (the runs and the fitted laws), OUT/rheology.json and OUT/rheology.png;
+Writes OUT/rheology.md (the reference runs, the fitted laws, the variants against their reference runs), OUT/rheology.json and OUT/rheology.png;
 --docs copies them to docs/data/shear_rheology.{md,json} and docs/figures/shear_rheology.png.
 """
 import argparse
@@ -28,6 +28,9 @@ for m, f in fits.items():
     text += '| %s | %.4f ± %.4f | %.3f ± %.3f | %.4f ± %.4f | %.3f ± %.3f | %.2g, %.2g | %d |\n' % (
         m.upper(), f['mu_s'], f['mu_s_err'], f['b'], f['b_err'], f['phi_c'], f['phi_c_err'], f['a'], f['a_err'],
         f['chi2_mu'], f['chi2_phi'], f['points'])
+variants = rheology.variants_markdown(records)
+if variants:
+    text += '\nRuns off the reference protocol (variants), against the reference run at the same nominal I:\n\n' + variants
 md, js, png = (os.path.join(args.directory, 'rheology.' + e) for e in ('md', 'json', 'png'))
 with open(md, 'w') as f:
     f.write(text)

@@ -18,6 +18,7 @@ import os
 import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
+from yadecd.analysis.rheology import PROTOCOL  # noqa: E402
 from yadecd.compare import shear  # noqa: E402
 from yadecd.io import append_csv, provenance, write_json_atomic  # noqa: E402
 
@@ -29,14 +30,20 @@ parser.add_argument('--n', type=int, default=2000, help='spheres in the cell')
 parser.add_argument('--seed', type=int, default=1)
 parser.add_argument('--strain', type=float, default=3.0, help='top wall travel over the gap in each run')
 parser.add_argument('--skip-strain', type=float, default=1.0, help='strain discarded as the transient')
-parser.add_argument('--dgamma', type=float, default=5e-4, help='CD: shear strain per step (h = dgamma/γ̇, at most dt_max·t_i)')
-parser.add_argument('--dt-max', type=float, default=0.05, help='CD: largest time step over the inertial time t_i')
-parser.add_argument('--tolerance', type=float, default=1e-3, help='CD: solver tolerance (as the pile protocol)')
-parser.add_argument('--young-over-p', type=float, default=1e5, help="MD: Young's modulus over p")
-parser.add_argument('--en-md', type=float, default=0.1, help='MD: normal restitution')
+CD, MD = PROTOCOL['cd'], PROTOCOL['md']
+parser.add_argument('--dgamma', type=float, default=CD['dgamma'], help='CD: shear strain per step (h = dgamma/γ̇, at most dt_max·t_i)')
+parser.add_argument('--dt-max', type=float, default=CD['dt_max'], help='CD: largest time step over the inertial time t_i')
+parser.add_argument('--tolerance', type=float, default=CD['tolerance'], help='CD: solver tolerance (as the pile protocol)')
+parser.add_argument('--en-cd', type=float, default=CD['en_cd'], help="CD: normal restitution (Moreau's law)")
+parser.add_argument('--young-over-p', type=float, default=MD['young_over_p'], help="MD: Young's modulus over p")
+parser.add_argument('--en-md', type=float, default=MD['en_md'], help='MD: normal restitution')
+parser.add_argument('--tag', default='', help='suffix of the run files (<method>_I<I>_n<N>_s<seed>_<tag>), for runs off the '
+                    'reference protocol or of another travel; the analysis tells variants by their options, not by the tag')
 parser.add_argument('--overwrite', action='store_true', help='redo runs whose results exist')
 args = parser.parse_args(sys.argv[1:])
 
+if args.tag and not args.tag.replace('-', '').replace('.', '').replace('_', '').isalnum():
+    sys.exit('--tag must be letters, digits, ".", "-" or "_", not %r' % args.tag)
 for value, name in ((args.n, '--n'), (args.strain, '--strain'), (args.dgamma, '--dgamma'), (args.dt_max, '--dt-max')):
     if value <= 0:
         sys.exit('%s must be positive, not %r' % (name, value))
@@ -58,10 +65,10 @@ else:
     write_json_atomic(pack_path[:-len('.yade.gz')] + '.json', dict(made, **provenance()))
     log('packing: made, gap %.2f mm, phi %.4f, %d steps -> %s' % (made['gap'] * 1e3, made['phi'], made['steps'], pack_path))
 
-options = dict(dgamma=args.dgamma, dt_max=args.dt_max, tolerance=args.tolerance) if args.method == 'cd' else \
+options = dict(dgamma=args.dgamma, dt_max=args.dt_max, tolerance=args.tolerance, en_cd=args.en_cd) if args.method == 'cd' else \
     dict(young_over_p=args.young_over_p, en_md=args.en_md)
 for I in [float(x) for x in args.I.split(',') if x.strip()]:
-    stem = os.path.join(args.out, '%s_I%g_n%d_s%d' % (args.method, I, args.n, args.seed))
+    stem = os.path.join(args.out, '%s_I%g_n%d_s%d' % (args.method, I, args.n, args.seed) + ('_' + args.tag if args.tag else ''))
     if os.path.exists(stem + '.json') and not args.overwrite:
         log('%s: done, skipped' % stem)
         continue

@@ -308,6 +308,14 @@ def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=N
     cd.warnUnconverged = False
     for k, v in options.items():
         setattr(cd, k, v)
+    set_restitution(en, et)
+    return cd
+
+
+def set_restitution(en=None, et=None, contacts=False):
+    """Give the scene's CD contact physics functor the restitution coefficients ``en`` and ``et``
+    (``None`` keeps one), for the contacts it creates from now on; with ``contacts``, the existing
+    contacts too (a saved packing's)."""
     for e in O.engines:
         if isinstance(e, InteractionLoop):
             for f in e.physDispatcher.functors:
@@ -315,4 +323,10 @@ def set_cd(dt=None, tolerance=None, maxIter=None, en=None, et=None, relaxation=N
                     f.en = en
                 if et is not None:
                     f.et = et
-    return cd
+    if contacts:
+        for i in O.interactions:
+            if i.isReal:
+                if en is not None:
+                    i.phys.en = en
+                if et is not None:
+                    i.phys.et = et

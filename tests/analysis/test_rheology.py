@@ -86,6 +86,48 @@ class TestRecords(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_variants_are_compared_not_fitted(self):
+        """A run off the reference protocol (here CD with e_n = 0.1, MD with E = 1e6·p) is left out of
+        the table of reference runs, of the fits and of the figure, and compared with the reference
+        run of its method at the same nominal I: Δμ = 0.43 − 0.38 = 0.05 with σ = hypot(0.003, 0.004)
+        = 0.005, z = 10; a variant without a reference run gets dashes. Unknown options are refused."""
+        tmp = tempfile.mkdtemp(prefix='cd-rheology-')
+        try:
+            bm = lambda m, e: dict(mean=m, sem=e, drift_z=0.1)   # noqa: E731
+
+            def write(name, method, I, mu, mu_err, options):
+                rec = dict(method=method, I=I, n=2000, steps=1000, wall_s=10.0, dt=1e-5, ti=1e-3, p=2500.0, strain=3.0,
+                           options=options, summary=dict(samples=200, I=bm(I, 1e-4), mu=bm(mu, mu_err), phi=bm(0.58, 0.001),
+                                                         normal_stress=bm(2500.0, 10.0), sweeps=50.0, skip_strain=1.0))
+                with open(os.path.join(tmp, name + '.json'), 'w') as f:
+                    json.dump(rec, f)
+
+            for k, I in enumerate((0.01, 0.03, 0.1)):       # reference CD runs on the line μ = 0.35 + I
+                write('cd_I%g_n2000_s1' % I, 'cd', I, 0.35 + I, 0.003, dict(dgamma=5e-4, dt_max=0.05, tolerance=1e-3))
+            write('cd_I0.03_n2000_s1_en0.1', 'cd', 0.03, 0.43, 0.004, dict(dgamma=5e-4, dt_max=0.05, tolerance=1e-3, en_cd=0.1))
+            write('md_I0.03_n2000_s1_stiff', 'md', 0.03, 0.40, 0.004, dict(young_over_p=1e6, en_md=0.1))
+            rs = rheology.load_records(tmp)
+            self.assertEqual(sorted(r['variant'] for r in rs), ['', '', '', 'en_cd=0.1', 'young_over_p=1e+06'])
+            fit = rheology.fit_laws(rs, 'cd')
+            self.assertEqual(fit['points'], 3)
+            self.assertAlmostEqual(fit['mu_s'], 0.35, delta=1e-12)
+            self.assertAlmostEqual(fit['b'], 1.0, delta=1e-10)
+            self.assertTrue(math.isnan(rheology.fit_laws(rs, 'md')['mu_s']))
+            self.assertEqual(len(rheology.table_markdown(rs).strip().splitlines()), 2 + 3)
+            text = rheology.variants_markdown(rs)
+            lines = text.strip().splitlines()
+            self.assertEqual(len(lines), 2 + 2)
+            cd_row = [line for line in lines if 'en_cd=0.1' in line][0]
+            self.assertIn('| +0.0500 ± 0.0050 (z +10.0) | +0.0000 ± 0.0014 (z +0.0) |', cd_row)
+            md_row = [line for line in lines if 'young_over_p' in line][0]
+            self.assertIn('| – | – | – |', md_row)
+            self.assertEqual(rheology.variants_markdown([r for r in rs if not r['variant']]), '')
+            self.assertEqual(rheology.variant_of('md', {'en_md': 0.1}), '')
+            with self.assertRaisesRegex(ValueError, 'unknown cd shear option.*damping'):
+                rheology.variant_of('cd', {'damping': 0.2})
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
 
 if __name__ == '__main__':
     unittest.main()

@@ -13,7 +13,17 @@ import os
 
 import numpy as np
 
-__all__ = ['LITERATURE', 'load_records', 'weighted_line', 'fit_laws', 'table_markdown', 'drift_cell', 'figure']
+__all__ = ['LITERATURE', 'PROTOCOL', 'variant_of', 'load_records', 'weighted_line', 'fit_laws', 'table_markdown',
+           'drift_cell', 'variants_markdown', 'figure']
+
+#: the reference protocol of each method (the defaults of ``scripts/shear_rheology.py`` and of
+#: :func:`yadecd.compare.shear.build`): CD's shear strain per step, largest step over t_i, solver
+#: tolerance and normal restitution; MD's Young's modulus over p and normal restitution. A run with
+#: other values is a *variant*: kept out of the fitted laws and compared with its reference run.
+PROTOCOL = {
+    'cd': dict(dgamma=5e-4, dt_max=0.05, tolerance=1e-3, en_cd=0.0),
+    'md': dict(young_over_p=1e5, en_md=0.1),
+}
 
 #: published μ(I) laws drawn for reference: name → (μ_s, μ_2, I_0, source, system)
 LITERATURE = {
@@ -28,10 +38,21 @@ def mu_of_I(I, mu_s, mu_2, I0):
     return mu_s + (mu_2 - mu_s) / (1.0 + I0 / I)
 
 
+def variant_of(method, options):
+    """How the run options ``options`` differ from the reference :data:`PROTOCOL` of ``method``:
+    '' for a reference run, else 'name=value' pairs (an option a record lacks has its reference value)."""
+    ref = PROTOCOL[method]
+    unknown = sorted(set(options) - set(ref))
+    if unknown:
+        raise ValueError('unknown %s shear option(s): %s' % (method, ', '.join(unknown)))
+    return ', '.join('%s=%g' % (k, options[k]) for k in ref if k in options and float(options[k]) != float(ref[k]))
+
+
 def load_records(directory):
-    """The run records (``<method>_I<I>_n<N>_s<seed>.json``) of a shear directory, as a list of
-    dicts with method, I (measured in the bulk), its error, mu, phi and their errors, the wall's
-    normal stress, sorted by method and I."""
+    """The run records (``<method>_I<I>_n<N>_s<seed>[_<tag>].json``) of a shear directory, as a list
+    of dicts with method, I (measured in the bulk), its error, mu, phi and their errors, the wall's
+    normal stress, the variant (:func:`variant_of`; '' for the reference protocol), sorted by
+    method and I."""
     out = []
     for path in sorted(glob.glob(os.path.join(directory, '*_I*_n*_s*.json'))):
         with open(path) as f:
@@ -42,7 +63,8 @@ def load_records(directory):
                         phi=s['phi']['mean'], phi_err=s['phi']['sem'], phi_drift=s['phi']['drift_z'],
                         I_drift=s['I'].get('drift_z'),
                         normal_stress=s['normal_stress']['mean'], p=r['p'], sweeps=s.get('sweeps'), n=r['n'],
-                        steps=r['steps'], travel=r.get('strain'), skip=s.get('skip_strain'), wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path))
+                        steps=r['steps'], travel=r.get('strain'), skip=s.get('skip_strain'), wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path,
+                        variant=variant_of(r['method'], r.get('options', {}))))
     return sorted(out, key=lambda r: (r['method'], r['I']))
 
 
@@ -69,8 +91,9 @@ def weighted_line(x, y, err):
 
 def fit_laws(records, method, I_max=0.1):
     """μ = μ_s + b·I and φ = φ_c − a·I fitted to the runs of ``method`` with I ≤ ``I_max``.
+    Variants (runs off the reference protocol) are left out.
     Returns a dict {mu_s, mu_s_err, b, b_err, phi_c, phi_c_err, a, a_err, chi2_mu, chi2_phi, points}."""
-    rs = [r for r in records if r['method'] == method and r['I'] <= I_max]
+    rs = [r for r in records if r['method'] == method and r['I'] <= I_max and not r.get('variant')]
     I = [r['I'] for r in rs]
     mu_s, b, mu_s_e, b_e, chi_mu = weighted_line(I, [r['mu'] for r in rs], [r['mu_err'] for r in rs])
     phi_c, slope, phi_c_e, slope_e, chi_phi = weighted_line(I, [r['phi'] for r in rs], [r['phi_err'] for r in rs])
@@ -81,10 +104,10 @@ def fit_laws(records, method, I_max=0.1):
 def table_markdown(records):
     """One row per run: method, I, μ, φ with their batch-means errors, the wall's mean normal
     stress over the imposed p (1 when the control holds), steps, wall time, and the drift check
-    (:func:`drift_cell`)."""
+    (:func:`drift_cell`). Reference runs only (variants: :func:`variants_markdown`)."""
     lines = ['| method | I (bulk) | μ = τ/p | φ (central half) | wall normal stress / p | wall travel / gap (window) | steps | time step / t_i | sweeps per step | wall [s] | drift z of μ, φ, I |',
              '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
-    for r in records:
+    for r in (r for r in records if not r.get('variant')):
         travel = '%g (%g–%g)' % (r['travel'], r['skip'], r['travel']) if r.get('travel') and r.get('skip') is not None else '–'
         lines.append('| %s | %.4g ± %.2g | %.4f ± %.4f | %.4f ± %.4f | %.4f | %s | %d | %s | %s | %.0f |' % (
             r['method'].upper(), r['I'], r['I_err'], r['mu'], r['mu_err'], r['phi'], r['phi_err'], r['normal_stress'] / r['p'],
@@ -104,6 +127,31 @@ def drift_cell(r, limit=3.0):
     return text
 
 
+def variants_markdown(records):
+    """One row per variant run against the reference run of the same method, nominal I and travel
+    (the longest travel when none matches): the differences in μ, φ and the bulk I with their
+    combined standard errors and their z = Δ/σ. '' when there is no variant."""
+    rows = []
+    for v in (r for r in records if r.get('variant')):
+        refs = [r for r in records if not r.get('variant') and r['method'] == v['method'] and r['I_set'] == v['I_set']]
+        same = [r for r in refs if r.get('travel') == v.get('travel')]
+        ref = (same or sorted(refs, key=lambda r: r.get('travel') or 0))[-1] if refs else None
+        cells = []
+        for key in ('mu', 'phi', 'I'):
+            if ref is None:
+                cells.append('–')
+                continue
+            d, e = v[key] - ref[key], math.hypot(v[key + '_err'], ref[key + '_err'])
+            cells.append('%+.4f ± %.4f (z %+.1f)' % (d, e, d / e if e > 0 else float('nan')))
+        rows.append('| %s | %g | %s | %.4f ± %.4f | %.4f ± %.4f | %.4g | %s | %s | %s | %.0f | %s |' % (
+            v['method'].upper(), v['I_set'], v['variant'], v['mu'], v['mu_err'], v['phi'], v['phi_err'], v['I'],
+            cells[0], cells[1], cells[2], v['wall_s'], drift_cell(v)))
+    if not rows:
+        return ''
+    return '\n'.join(['| method | nominal I | variant | μ | φ | I (bulk) | Δμ against the reference run | Δφ | ΔI | wall [s] | drift z of μ, φ, I |',
+                      '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |'] + rows) + '\n'
+
+
 def figure(records, path, fits=None):
     """μ(I) and φ(I) of every method with error bars (95 %: 2.26 batch-means standard errors;
     open markers for runs whose steady window still drifts), the fitted lines, and the published
@@ -118,7 +166,7 @@ def figure(records, path, fits=None):
         return save_figure(fig, path)
     grid = np.logspace(math.log10(min(allI)) - 0.2, math.log10(max(allI)) + 0.2, 100)
     for method, (marker, colour, label) in style.items():
-        rs = [r for r in records if r['method'] == method]
+        rs = [r for r in records if r['method'] == method and not r.get('variant')]
         if not rs:
             continue
         for k, r in enumerate(rs):       # open markers: the run's steady window still drifts

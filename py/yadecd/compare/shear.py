@@ -31,8 +31,9 @@ from yade import O, utils, Vector3
 from yade.wrapper import ForceEngine
 
 from .. import engines, integrator
+from ..analysis.rheology import PROTOCOL
 from ..analysis.stats import batch_means, batch_ratio
-from ..scenes import material
+from ..scenes import material, set_restitution
 
 __all__ = ['REFERENCE', 'inertial_time', 'packing', 'build', 'run', 'summarise', 'SAMPLE_FIELDS', 'slab_volume']
 
@@ -150,16 +151,23 @@ def _md_engines(young, en):
     return md_engines(gravity=(0, 0, 0), law='hertz', damping=0.0, en=en)
 
 
-def build(path, method, I, dgamma=5e-4, dt_max=0.05, tolerance=1e-3, young_over_p=1e5, en_md=0.1, safety=0.5, **ref):
+def build(path, method, I, dgamma=PROTOCOL['cd']['dgamma'], dt_max=PROTOCOL['cd']['dt_max'],
+          tolerance=PROTOCOL['cd']['tolerance'], en_cd=PROTOCOL['cd']['en_cd'], young_over_p=PROTOCOL['md']['young_over_p'],
+          en_md=PROTOCOL['md']['en_md'], safety=0.5, **ref):
     """The packing saved at ``path`` (:func:`packing`) sheared at the inertial number ``I`` by
     ``method`` ('cd' or 'md'): the top wall moves at V = γ̇·gap with γ̇ = I·sqrt(p/ρ)/d̄ (the bulk
     rate is measured; wall slip makes it smaller). CD: time step h = min(dgamma/γ̇, dt_max·t_i),
-    solver ``tolerance``, e_n = 0. MD: Young's modulus E = ``young_over_p``·p, restitution
-    ``en_md``, h = ``safety``·PWaveTimeStep. Returns a dict (gamma_dot, V, dt, ti)."""
+    solver ``tolerance``, normal restitution ``en_cd`` (Moreau's law; 0 by default, given to the
+    packing's contacts and to new ones). MD: Young's modulus E = ``young_over_p``·p, restitution
+    ``en_md``, h = ``safety``·PWaveTimeStep. The defaults are the reference protocol
+    (:data:`yadecd.analysis.rheology.PROTOCOL`). Returns a dict (gamma_dot, V, dt, ti)."""
     if method not in ('cd', 'md'):
         raise ValueError("method must be 'cd' or 'md', not %r" % (method,))
     if not 0 < I <= 1:
         raise ValueError('the inertial number I must be in (0, 1], not %r' % (I,))
+    for name, e in (('en_cd', en_cd), ('en_md', en_md)):
+        if not 0 <= e <= 1:
+            raise ValueError('%s is a restitution coefficient, in [0, 1], not %r' % (name, e))
     r = dict(REFERENCE, **ref)
     d, rho, p = r['d'], r['rho'], r['p']
     ti = inertial_time(d, rho, p)
@@ -177,6 +185,7 @@ def build(path, method, I, dgamma=5e-4, dt_max=0.05, tolerance=1e-3, young_over_
     else:
         integrator().tolerance = tolerance
         O.dt = min(dgamma / gamma_dot, dt_max * ti)
+        set_restitution(en_cd, contacts=True)
     top.state.vel = Vector3(V, 0, 0)
     return dict(gamma_dot=gamma_dot, V=V, dt=O.dt, ti=ti, method=method, I=I, gap0=gap)
 
