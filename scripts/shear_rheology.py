@@ -7,12 +7,16 @@ YADE's MD (yadecd.compare.shear): μ(I) and φ(I) of frictional spheres (μ = 0.
 
 The packing (--n spheres, --seed) is made once, by CD, and kept as OUT/packing_n<N>_s<seed>.yade.gz
 (a YADE archive, with a .json beside it); every run of either method starts from it. Each run writes OUT/<method>_I<I>_n<N>_s<seed>.csv (the
-samples, written as they come) and, when it ends, a .json beside it (its settings and the
-steady-state means with batch-means error bars). A run whose .json exists is skipped, so an
-interrupted sweep is resumed by running the same command (the interrupted run starts again;
-runs here take 1 to 40 minutes).
+samples, written as they come), a checkpoint every 20 samples (<stem>.ckpt.json and the scene's
+archive <stem>.ckpt_<samples>.yade.gz) and, when it ends, a .json beside it (its settings and the
+steady-state means with batch-means error bars). Running the same command again skips the runs
+whose .json exists and resumes an interrupted run from its checkpoint (the same bits as an
+uninterrupted run, for CD); with --extend and a larger --strain, a finished run continues from
+its final checkpoint and its record is remade over the longer window.
 """
 import argparse
+import csv
+import glob
 import json
 import os
 import sys
@@ -39,7 +43,8 @@ parser.add_argument('--young-over-p', type=float, default=MD['young_over_p'], he
 parser.add_argument('--en-md', type=float, default=MD['en_md'], help='MD: normal restitution')
 parser.add_argument('--tag', default='', help='suffix of the run files (<method>_I<I>_n<N>_s<seed>_<tag>), for runs off the '
                     'reference protocol or of another travel; the analysis tells variants by their options, not by the tag')
-parser.add_argument('--overwrite', action='store_true', help='redo runs whose results exist')
+parser.add_argument('--overwrite', action='store_true', help='redo runs whose results exist (their files removed first)')
+parser.add_argument('--extend', action='store_true', help='continue finished runs from their final checkpoint to a larger --strain')
 args = parser.parse_args(sys.argv[1:])
 
 if args.tag and not args.tag.replace('-', '').replace('.', '').replace('_', '').isalnum():
@@ -67,19 +72,50 @@ else:
 
 options = dict(dgamma=args.dgamma, dt_max=args.dt_max, tolerance=args.tolerance, en_cd=args.en_cd) if args.method == 'cd' else \
     dict(young_over_p=args.young_over_p, en_md=args.en_md)
+fields = list(shear.SAMPLE_FIELDS)
+
+
+def remove_run(stem):
+    """A run's files: its samples, record, checkpoint bookkeeping and archives."""
+    for path in [stem + e for e in ('.csv', '.json', '.ckpt.json')] + glob.glob(glob.escape(stem) + '.ckpt_*.yade.gz'):
+        if os.path.exists(path):
+            os.remove(path)
+
+
+def rows_to_resume(stem, samples):
+    """The first ``samples`` rows of the run's samples file, which is rewritten with only them
+    (rows measured after the checkpoint are measured again)."""
+    with open(stem + '.csv', newline='') as f:
+        rows = [tuple(float(row[k]) for k in fields) for row in csv.DictReader(f)]
+    if len(rows) < samples:
+        sys.exit('%s.csv has %d rows, its checkpoint %d: the run cannot be resumed (use --overwrite)' % (stem, len(rows), samples))
+    rows = rows[:samples]
+    append_csv(stem + '.csv', None, fields, start=True, stamp=False)
+    for row in rows:
+        append_csv(stem + '.csv', dict(zip(fields, row)), fields, stamp=False)
+    return rows
+
+
 for I in [float(x) for x in args.I.split(',') if x.strip()]:
     stem = os.path.join(args.out, '%s_I%g_n%d_s%d' % (args.method, I, args.n, args.seed) + ('_' + args.tag if args.tag else ''))
-    if os.path.exists(stem + '.json') and not args.overwrite:
-        log('%s: done, skipped' % stem)
-        continue
-    fields = list(shear.SAMPLE_FIELDS)
-    first = [True]
+    if args.overwrite:
+        remove_run(stem)
+    ckpt = shear.checkpoint_state(stem)
+    if os.path.exists(stem + '.json'):
+        with open(stem + '.json') as f:
+            travel = json.load(f)['strain']
+        if not (args.extend and args.strain > travel):
+            log('%s: done (travel %g), skipped' % (stem, travel))
+            continue
+        if ckpt is None:
+            sys.exit('%s: no checkpoint to extend the run from (runs made before checkpoints; use --overwrite)' % stem)
+    done_rows = rows_to_resume(stem, ckpt['samples']) if ckpt else []
 
     def keep(row, _stem=stem):
-        append_csv(_stem + '.csv', dict(zip(fields, row)), fields, start=first[0], stamp=False)
-        first[0] = False
+        append_csv(_stem + '.csv', dict(zip(fields, row)), fields, start=not os.path.exists(_stem + '.csv'), stamp=False)
 
-    info, rows = shear.run(pack_path, args.method, I, strain=args.strain, log=log, on_sample=keep, **options)
+    info, rows = shear.run(pack_path, args.method, I, strain=args.strain, log=log, on_sample=keep, checkpoint=stem,
+                           done_rows=done_rows, **options)
     summary = shear.summarise(rows, info['d'], info['rho'], info['p'], args.skip_strain)
     record = dict(info, options=options, summary=summary, packing=pack_path, seed=args.seed, **provenance())
     write_json_atomic(stem + '.json', record)

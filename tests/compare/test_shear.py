@@ -1,7 +1,11 @@
 """The plane-shear measurements (yadecd.compare.shear) on constructed cases with known answers:
 the slab volume of spheres cut by two planes (spherical caps), and the bulk shear rate and solid
-fraction of a constructed sample with an exact linear velocity profile."""
+fraction of a constructed sample with an exact linear velocity profile; and the runs' checkpoints
+on a small packing: an interrupted CD run resumed gives the same samples, bit for bit."""
 import math
+import os
+import shutil
+import tempfile
 import unittest
 
 import numpy as np
@@ -54,6 +58,76 @@ class TestMeasure(unittest.TestCase):
         self.assertAlmostEqual(m['gamma_dot'], 3.0, delta=1e-12)
         self.assertAlmostEqual(m['phi'], 5 * 4 * math.pi / 3 * 0.05 ** 3 / 0.5, delta=1e-14)
         self.assertEqual((m['fx'], m['fz'], m['n_contacts']), (0.0, 0.0, 0))
+
+
+class TestCheckpoint(unittest.TestCase):
+    """A run interrupted after its checkpoint and resumed from it measures the same samples as a
+    run never interrupted: bit for bit under CD (the archive holds the whole state, and the wall
+    force is summed exactly, independent of the interaction container's order, which a load does
+    not keep); under MD the same physical state, its force sums in another order (round-off)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix='cd-shear-')
+        cls.pack = os.path.join(cls.tmp, 'packing.yade.gz')
+        shear.packing(cls.pack, n=300, seed=1, settle_steps=200, log=lambda m: None)     # 4 d × 4 d cell, ≈ 30 s
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def interrupted(self, method, name, after=15, **options):
+        """A run to strain 0.3 (30 samples) stopped by an error after ``after`` samples (its
+        checkpoint every 10), then resumed with the rows measured so far."""
+        stem, got = os.path.join(self.tmp, name), []
+
+        class Stop(Exception):
+            pass
+
+        def on(row):
+            got.append(row)
+            if len(got) == after:
+                raise Stop()
+
+        with self.assertRaises(Stop):
+            shear.run(self.pack, method, 0.1, strain=0.3, log=lambda m: None, on_sample=on, checkpoint=stem, checkpoint_every=10,
+                      **options)
+        state = shear.checkpoint_state(stem)
+        self.assertEqual((state['samples'], state['final']), (10, False))
+        return stem, got
+
+    def test_cd_resume_is_bit_identical_and_extends(self):
+        info, straight = shear.run(self.pack, 'cd', 0.1, strain=0.3, log=lambda m: None)
+        stem, got = self.interrupted('cd', 'cd_run')
+        info2, resumed = shear.run(self.pack, 'cd', 0.1, strain=0.3, log=lambda m: None, checkpoint=stem, done_rows=got,
+                                   checkpoint_every=10)
+        self.assertEqual(len(resumed), 30)
+        self.assertEqual(info2['steps'], info['steps'])
+        for a, b in zip(straight, resumed):      # every column but the wall time, nan included
+            self.assertTrue(np.array_equal(np.array(a[:-1]), np.array(b[:-1]), equal_nan=True), (a, b))
+        self.assertTrue(shear.checkpoint_state(stem)['final'])
+        self.assertEqual(len([f for f in os.listdir(self.tmp) if f.startswith('cd_run.ckpt_')]), 1)   # older archives removed
+        info3, longer = shear.run(self.pack, 'cd', 0.1, strain=0.4, log=lambda m: None, checkpoint=stem, done_rows=resumed)
+        self.assertEqual((len(longer), info3['steps'], info3['strain']), (40, 4 * info['steps'] // 3, 0.4))
+        self.assertEqual(longer[:30], resumed)
+        self.assertAlmostEqual(longer[-1][2], 0.4, delta=0.011)     # the wall's travel over the gap
+
+    def test_resume_refuses_other_settings_or_missing_rows(self):
+        stem, got = self.interrupted('cd', 'cd_refuse', after=12)
+        with self.assertRaisesRegex(ValueError, r'checkpoint .*cd_refuse.ckpt.json is of cd at I=0.1 with .*en_cd.*0.1'):
+            shear.run(self.pack, 'cd', 0.1, strain=0.3, log=lambda m: None, checkpoint=stem, done_rows=got, en_cd=0.1)
+        with self.assertRaisesRegex(ValueError, 'holds 10 samples, but 9 rows were given'):
+            shear.run(self.pack, 'cd', 0.1, strain=0.3, log=lambda m: None, checkpoint=stem, done_rows=got[:9])
+
+    def test_md_resumes_the_same_state(self):
+        info, straight = shear.run(self.pack, 'md', 0.1, strain=0.3, log=lambda m: None)
+        stem, got = self.interrupted('md', 'md_run')
+        info2, resumed = shear.run(self.pack, 'md', 0.1, strain=0.3, log=lambda m: None, checkpoint=stem, done_rows=got)
+        self.assertEqual((len(resumed), info2['steps']), (30, info['steps']))
+        self.assertEqual(resumed[:10], got[:10])
+        self.assertEqual(resumed[10][:3], straight[10][:3])           # step, time and wall travel: the same steps
+        self.assertAlmostEqual(resumed[10][3] / straight[10][3], 1, delta=1e-12)   # the gap, one sample on
+        self.assertAlmostEqual(resumed[-1][3] / straight[-1][3], 1, delta=1e-6)    # and twenty samples on
 
 
 if __name__ == '__main__':

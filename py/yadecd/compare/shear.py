@@ -22,7 +22,9 @@ and the solid fraction of that central half (the exact volume of the grains' par
 The steady state is the part after ``skip_strain``: μ = τ/p as the ratio of the means,
 I = γ̇·d̄/sqrt(p/ρ) with the mean bulk γ̇, φ; error bars by batch means (:func:`summarise`).
 """
+import json
 import math
+import os
 import time
 
 import numpy as np
@@ -33,9 +35,10 @@ from yade.wrapper import ForceEngine
 from .. import engines, integrator
 from ..analysis.rheology import PROTOCOL
 from ..analysis.stats import batch_means, batch_ratio
+from ..io import jsonable, write_json_atomic
 from ..scenes import material, set_restitution
 
-__all__ = ['REFERENCE', 'inertial_time', 'packing', 'build', 'run', 'summarise', 'SAMPLE_FIELDS', 'slab_volume']
+__all__ = ['REFERENCE', 'inertial_time', 'packing', 'build', 'run', 'checkpoint_state', 'summarise', 'SAMPLE_FIELDS', 'slab_volume']
 
 #: the reference scales [SI]: mean diameter, grain density, normal stress, friction, size spread
 REFERENCE = dict(d=1e-3, rho=2500.0, p=2500.0, mu=0.5, spread=0.2)
@@ -195,16 +198,17 @@ def measure(bottom, top, grains, top_members):
     v_x(z) over the central half of the gap), solid fraction of the central half."""
     zb = bottom.state.pos[2]
     gap = top.state.pos[2] - zb
-    f = Vector3(0, 0, 0)
-    n_contacts = 0
+    fx, fz = [], []            # summed exactly (math.fsum): the result does not depend on the container's order,
+    n_contacts = 0             # which a scene loaded from an archive does not keep
     for i in O.interactions:
         if not i.isReal:
             continue
         n_contacts += 1
-        if i.id2 in top_members:
-            f += i.phys.normalForce + i.phys.shearForce
-        elif i.id1 in top_members:
-            f -= i.phys.normalForce + i.phys.shearForce
+        sign = 1 if i.id2 in top_members else -1 if i.id1 in top_members else 0
+        if sign:
+            force = i.phys.normalForce + i.phys.shearForce
+            fx.append(sign * force[0])
+            fz.append(sign * force[2])
     z = np.array([b.state.pos[2] for b in grains])
     vx = np.array([b.state.vel[0] for b in grains])
     rad = np.array([b.shape.radius for b in grains])
@@ -213,41 +217,99 @@ def measure(bottom, top, grains, top_members):
     slope = np.polyfit(z[mid], vx[mid], 1)[0] if mid.sum() > 2 else float('nan')
     side2 = abs(O.cell.hSize[0, 0] * O.cell.hSize[1, 1])
     phi = float(slab_volume(z, rad, z0, z1).sum() / (side2 * (z1 - z0)))
-    return dict(gap=gap, fx=f[0], fz=f[2], gamma_dot=float(slope), phi=phi, n_contacts=n_contacts)
+    return dict(gap=gap, fx=math.fsum(fx), fz=math.fsum(fz), gamma_dot=float(slope), phi=phi, n_contacts=n_contacts)
 
 
-def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sample=None, **options):
+def checkpoint_state(stem):
+    """The bookkeeping of the checkpoint ``<stem>.ckpt.json`` (samples done, the scene's archive,
+    the run's settings), or None when there is none."""
+    path = stem + '.ckpt.json'
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        return json.load(f)
+
+
+def _save_checkpoint(stem, state):
+    """The scene and ``state`` at ``stem``: the archive under a name that carries the sample
+    count, then the JSON that points to it (atomically), then the older archive removed, so that
+    a crash at any point leaves a JSON whose archive exists and matches it."""
+    old = checkpoint_state(stem)
+    archive = '%s.ckpt_%06d.yade.gz' % (stem, state['samples'])
+    O.save(archive)
+    state = dict(state, archive=os.path.basename(archive))
+    write_json_atomic(stem + '.ckpt.json', state)
+    if old and old.get('archive') and old['archive'] != state['archive']:
+        stale = os.path.join(os.path.dirname(os.path.abspath(stem)), old['archive'])
+        if os.path.exists(stale):
+            os.remove(stale)
+
+
+def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sample=None, checkpoint=None,
+        checkpoint_every=20, done_rows=(), **options):
     """Shear the packing at ``path`` at inertial number ``I`` to the nominal ``strain`` (top wall
     travel over the gap) by ``method``; returns (the run's description dict, the sample rows in
-    :data:`SAMPLE_FIELDS` order). ``on_sample(row)`` is called with each row as it is measured."""
-    info = build(path, method, I, **options)
-    bottom, top, grains, members = _parts()
+    :data:`SAMPLE_FIELDS` order). ``on_sample(row)`` is called with each row as it is measured.
+
+    With ``checkpoint`` (a path stem), the scene (a YADE archive: the same bits on resume) and the
+    run's bookkeeping are saved every ``checkpoint_every`` samples and at the end. When that
+    checkpoint exists, the run continues from it instead of starting anew, to ``strain`` (which may
+    exceed the strain it was started for: the run is extended); ``done_rows`` are the rows
+    measured up to the checkpoint (its ``samples`` first rows: :func:`checkpoint_state`), and the
+    method, I and options must be the checkpoint's."""
+    state = checkpoint_state(checkpoint) if checkpoint else None
+    if state is None:
+        info = build(path, method, I, **options)
+        bottom, top, grains, members = _parts()
+        rows, wall_before = [], 0.0
+        info.update(x0=top.state.pos[0], iter0=O.iter, packing=path)
+    else:
+        if (state['method'], state['I'], state['options']) != (method, I, jsonable(options)):
+            raise ValueError('the checkpoint %s.ckpt.json is of %s at I=%g with %s, not of %s at I=%g with %s' % (
+                checkpoint, state['method'], state['I'], state['options'], method, I, jsonable(options)))
+        if len(done_rows) < state['samples']:
+            raise ValueError('the checkpoint %s.ckpt.json holds %d samples, but %d rows were given' % (
+                checkpoint, state['samples'], len(done_rows)))
+        O.load(os.path.join(os.path.dirname(os.path.abspath(checkpoint)), state['archive']))
+        info, rows, wall_before = dict(state['info']), [tuple(r) for r in done_rows[:state['samples']]], state['wall_s']
+        bottom, top, grains, members = _parts()
+        log('%s I=%g: resumed at sample %d (strain %.3f) from %s' % (method, I, len(rows), rows[-1][2] if rows else 0.0,
+                                                                     state['archive']))
     rate = info['V'] / info['gap0']
     per_sample = max(1, int(round(1.0 / (samples_per_strain * rate * O.dt))))
     n_samples = int(math.ceil(strain / (per_sample * rate * O.dt)))
-    x0, iter0 = top.state.pos[0], O.iter
     area = abs(O.cell.hSize[0, 0] * O.cell.hSize[1, 1])
     cd = integrator() if method == 'cd' else None
-    rows, start = [], time.time()
-    for k in range(n_samples):
+    start = time.time()
+
+    def keep(final=False):
+        if checkpoint:
+            _save_checkpoint(checkpoint, dict(method=method, I=I, options=jsonable(options), info=jsonable(info), samples=len(rows),
+                                              wall_s=wall_before + time.time() - start, final=final))
+
+    for k in range(len(rows), n_samples):
         sweeps = 0
         for _ in range(per_sample):
             O.step()
             sweeps += cd.iterations if cd is not None else 0
         m = measure(bottom, top, grains, members)
-        strain_now = (top.state.pos[0] - x0) / info['gap0']
+        strain_now = (top.state.pos[0] - info['x0']) / info['gap0']
         mu = abs(m['fx']) / m['fz'] if m['fz'] > 0 else float('nan')
         rows.append((O.iter, O.time, strain_now, m['gap'], m['fx'] / area, m['fz'] / area, m['gamma_dot'], m['phi'], mu,
-                     m['n_contacts'], sweeps / per_sample, time.time() - start))
+                     m['n_contacts'], sweeps / per_sample, wall_before + time.time() - start))
         if on_sample is not None:
             on_sample(rows[-1])
         if (k + 1) % max(1, n_samples // 20) == 0:
             log('%s I=%g: strain %.2f, mu %.3f, phi %.4f, bulk rate %.3g/s (wall %.3g/s), %d contacts, %.0f sweeps/step, %.0f s'
                 % (method, I, strain_now, mu, m['phi'], m['gamma_dot'], rate, m['n_contacts'], rows[-1][10], rows[-1][11]))
-    info.update(per_sample=per_sample, n_samples=n_samples, strain=strain, steps=O.iter - iter0, wall_s=time.time() - start,
-                n=len(grains), area=area, d=float(options.get('d', REFERENCE['d'])), rho=float(options.get('rho', REFERENCE['rho'])),
-                p=float(options.get('p', REFERENCE['p'])))
-    return info, rows
+        if (k + 1) % checkpoint_every == 0 and k + 1 < n_samples:
+            keep()
+    keep(final=True)
+    out = {k: v for k, v in info.items() if k not in ('x0', 'iter0', 'packing')}
+    out.update(per_sample=per_sample, n_samples=n_samples, strain=strain, steps=O.iter - info['iter0'],
+               wall_s=wall_before + time.time() - start, n=len(grains), area=area, d=float(options.get('d', REFERENCE['d'])),
+               rho=float(options.get('rho', REFERENCE['rho'])), p=float(options.get('p', REFERENCE['p'])))
+    return out, rows
 
 
 def summarise(rows, d, rho, p, skip_strain=1.0, n_batches=10):
