@@ -11,6 +11,7 @@
 #include <pkg/dem/ScGeom.hpp>
 
 #include <algorithm>
+#include <numeric>
 #include <fstream>
 #include <sstream>
 
@@ -320,9 +321,16 @@ void ContactDynamicsIntegrator::checkScene()
 // an erase, and Gauss–Seidel depends on order.
 void ContactDynamicsIntegrator::gatherContacts()
 {
-	cd::ContactSet& set = core.contacts;
-	set.clear();
-	links.clear();
+	// Pass 1, in the container's order (so that the first bad interaction is the one named): the
+	// checks, and each contact's sort key. Only the keys are sorted; the contact records, which
+	// are large, are then written once, in their final places, by any number of threads.
+	struct Key {
+		Real                           height;
+		int                            b1, b2;
+		const shared_ptr<Interaction>* I; // the container's element (the container does not change here)
+	};
+	std::vector<Key> keys;
+	keys.reserve(core.contacts.size() + 64);
 	const Vector3r up = gravity.squaredNorm() > 0 ? Vector3r(-gravity.normalized()) : Vector3r::UnitZ();
 	for (const auto& I : *scene->interactions) {
 		if (!I->functorCache.geomExists) {
@@ -349,13 +357,35 @@ void ContactDynamicsIntegrator::gatherContacts()
 			        + ": check the frictionAngle of both bodies' materials (must be in [0, pi/2)).");
 		if (!(phys->en >= 0 && phys->en <= 1) || !(phys->et >= -1 && phys->et <= 1))
 			throw std::invalid_argument("contact " + pairName(I->getId1(), I->getId2()) + " has restitution en, et outside [0,1], [-1,1].");
-		cd::ContactInfo c;
-		c.b1     = mover[I->getId1()];
-		c.b2     = mover[I->getId2()];
-		c.origin = long(links.size());
+		keys.push_back(Key { up.dot(geom->contactPoint), mover[I->getId1()], mover[I->getId2()], &I });
+	}
+	// The base sweep order (cd::ContactSet::sortByHeight's): by height, ties by body ids.
+	const long        nc = long(keys.size());
+	std::vector<long> order(nc);
+	std::iota(order.begin(), order.end(), 0L);
+	std::sort(order.begin(), order.end(), [&keys](long a, long b) {
+		const Key &ka = keys[a], &kb = keys[b];
+		if (ka.height != kb.height) return ka.height < kb.height;
+		return ka.b1 < kb.b1 || (ka.b1 == kb.b1 && ka.b2 < kb.b2);
+	});
+	// Pass 2: contact k is the k-th in that order; links[k] its interaction (ContactInfo::origin = k).
+	cd::ContactSet& set = core.contacts;
+	set.clear();
+	set.resize(size_t(nc)); // fresh records: every field at its default, as add() gave them
+	links.resize(size_t(nc));
+#pragma omp parallel for schedule(static) if (nc >= 2048)
+	for (long k = 0; k < nc; ++k) { // every contact written by one thread: the same set for any thread count
+		const Key&   key  = keys[order[k]];
+		Interaction& I    = **key.I;
+		const auto*  phys = static_cast<const CDPhys*>(I.phys.get());
+		const auto*  geom = static_cast<const ScGeom*>(I.geom.get());
+		cd::ContactInfo& c = set.info[k];
+		c.b1     = key.b1;
+		c.b2     = key.b2;
+		c.origin = k;
 		c.gapI   = -geom->penetrationDepth;
 		c.refR   = math::min(geom->refR1, geom->refR2);
-		c.height = up.dot(geom->contactPoint);
+		c.height = key.height;
 		// overlap the contact may keep: what it was born with, shrinking with the overlap
 		const Real overlap = math::max(Real(0), geom->penetrationDepth);
 		c.allowance        = std::isnan(phys->overlapAllowance) ? overlap : math::min(phys->overlapAllowance, overlap);
@@ -363,15 +393,14 @@ void ContactDynamicsIntegrator::gatherContacts()
 		c.et               = phys->et;
 		c.approach         = phys->approachVelocity;
 		c.warmStart        = phys->impulse;
-		if (scene->isPeriodic && I->cellDist != Vector3i::Zero()) {
+		if (scene->isPeriodic && I.cellDist != Vector3i::Zero()) {
 			c.shifted = true;
-			c.shift   = imageShiftVelocity(I->cellDist);
+			c.shift   = imageShiftVelocity(I.cellDist);
 		}
-		set.add(c, mu, phys->status);
-		links.push_back(I);
+		set.state[k] = cd::ContactState { Vector3r::Zero(), phys->tangensOfFrictionAngle, phys->status, -1 };
+		links[k] = *key.I;
 	}
-	set.sortByHeight();
-	nContacts = int(set.size());
+	nContacts = int(nc);
 	memberLever.assign(links.size(), { Vector3r::Zero(), Vector3r::Zero() });
 }
 
@@ -667,7 +696,9 @@ void ContactDynamicsIntegrator::storeResults()
 {
 	const Real h = scene->dt;
 	const cd::ContactSet& set = core.contacts;
-	for (size_t k = 0; k < set.size(); ++k) {
+	const long            nc  = long(set.size());
+#pragma omp parallel for schedule(static) if (nc >= 2048)
+	for (long k = 0; k < nc; ++k) { // each contact writes its own CDPhys
 		const cd::ContactInfo& c    = set.info[k];
 		const Vector3r&        r    = set.state[k].r;
 		auto*                  phys = static_cast<CDPhys*>(links[c.origin]->phys.get());
@@ -707,8 +738,12 @@ void ContactDynamicsIntegrator::storeResults()
 #ifdef YADE_OPENMP
 	std::fill(threadMaxVelocitySq.begin(), threadMaxVelocitySq.end(), Real(0));
 #endif
-	for (const auto& b : *scene->bodies)
+	const long nb = long(scene->bodies->size());
+#pragma omp parallel for schedule(static) if (nb >= 4096)
+	for (long id = 0; id < nb; ++id) { // a maximum per thread (NewtonIntegrator's), then the maximum of those
+		const shared_ptr<Body>& b = (*scene->bodies)[id];
 		if (b) saveMaximaDisplacement(b);
+	}
 #ifdef YADE_OPENMP
 	for (const Real& m : threadMaxVelocitySq)
 		maxVelocitySq = math::max(maxVelocitySq, m);

@@ -15,6 +15,13 @@ namespace cd {
 		general.clear();
 	}
 
+	void ContactSet::resize(size_t n)
+	{
+		info.resize(n);
+		state.resize(n);
+		sphere.resize(n);
+	}
+
 	void ContactSet::add(const ContactInfo& c, Real mu_, int status_)
 	{
 		info.push_back(c);

@@ -110,6 +110,9 @@ namespace cd {
 		void   clear();
 		/*! Append a contact given by the host; impulse and status are its warm start. */
 		void add(const ContactInfo& c, Real mu, int status);
+		/*! n more contacts with default records, which the host then fills in place (its
+		 *  parallel gather: info and state as add() would give them). */
+		void resize(size_t n);
 		/*! Store the contacts in the given order: contact j ← contact order[j]. */
 		void permute(const std::vector<long>& order);
 		/*! The base sweep order: by height along −gravity, ties by body ids (a key of the state
