@@ -10,6 +10,9 @@
 #include <core/Scene.hpp>
 #include <pkg/dem/ScGeom.hpp>
 
+#ifdef YADE_OPENMP
+#include <omp.h>
+#endif
 #include <algorithm>
 #include <numeric>
 #include <fstream>
@@ -319,46 +322,85 @@ void ContactDynamicsIntegrator::checkScene()
 // Stage 1: every CD contact into the core's contact set, then in a fixed order (by height along
 // −gravity, ties by (id1, id2)): the interaction container's own order changes after O.load or
 // an erase, and Gauss–Seidel depends on order.
+// Why interaction I cannot take part in the solve ("" when it can, or when it is skipped: two
+// obstacles, a potential interaction).
+std::string ContactDynamicsIntegrator::interactionProblem(const Interaction& I) const
+{
+	if (!I.functorCache.geomExists) {
+		const auto& b1 = Body::byId(I.getId1(), scene);
+		const auto& b2 = Body::byId(I.getId2(), scene);
+		if (!(b1 && b1->isDynamic()) && !(b2 && b2->isDynamic())) return ""; // two obstacles never meet
+		return "no geometry functor for bodies " + pairName(I.getId1(), I.getId2()) + " (shapes " + (b1 ? b1->shape->getClassName() : "?") + ", "
+		        + (b2 ? b2->shape->getClassName() : "?")
+		        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere, Facet–Sphere and Box–Sphere (see yadecd.engines()).";
+	}
+	if (!I.isReal()) return "";
+	const auto* phys = dynamic_cast<const CDPhys*>(I.phys.get());
+	if (!phys || !dynamic_cast<const ScGeom*>(I.geom.get()))
+		return "interaction " + pairName(I.getId1(), I.getId2()) + " has " + I.geom->getClassName() + "/" + I.phys->getClassName()
+		        + ": ContactDynamicsIntegrator needs ScGeom and CDPhys (use Ip2_FrictMat_FrictMat_CDPhys and Law2_ScGeom_CDPhys_Coulomb).";
+	const Real mu = phys->tangensOfFrictionAngle;
+	if (!(mu >= 0) || !std::isfinite(mu))
+		return "contact " + pairName(I.getId1(), I.getId2()) + " has friction coefficient " + std::to_string(mu)
+		        + ": check the frictionAngle of both bodies' materials (must be in [0, pi/2)).";
+	if (!(phys->en >= 0 && phys->en <= 1) || !(phys->et >= -1 && phys->et <= 1))
+		return "contact " + pairName(I.getId1(), I.getId2()) + " has restitution en, et outside [0,1], [-1,1].";
+	return "";
+}
+
 void ContactDynamicsIntegrator::gatherContacts()
 {
-	// Pass 1, in the container's order (so that the first bad interaction is the one named): the
-	// checks, and each contact's sort key. Only the keys are sorted; the contact records, which
-	// are large, are then written once, in their final places, by any number of threads.
+	// Pass 1: the contacts that take part (real, CDPhys/ScGeom, a dynamic body on one side), each
+	// with its sort key, collected by each thread over its contiguous block of the container and
+	// joined in thread order, which is the container's order for any thread count. A bad
+	// interaction is only noted there (no exception may leave a parallel region) and the first one
+	// in the container's order is named afterwards. Only the keys are sorted; the contact records,
+	// which are large, are written once, in their final places (pass 2).
 	struct Key {
 		Real                           height;
 		int                            b1, b2;
 		const shared_ptr<Interaction>* I; // the container's element (the container does not change here)
 	};
-	std::vector<Key> keys;
-	keys.reserve(core.contacts.size() + 64);
 	const Vector3r up = gravity.squaredNorm() > 0 ? Vector3r(-gravity.normalized()) : Vector3r::UnitZ();
-	for (const auto& I : *scene->interactions) {
-		if (!I->functorCache.geomExists) {
-			const auto& b1 = Body::byId(I->getId1(), scene);
-			const auto& b2 = Body::byId(I->getId2(), scene);
-			if (!(b1 && b1->isDynamic()) && !(b2 && b2->isDynamic())) continue; // two obstacles never meet
-			throw std::invalid_argument(
-			        "no geometry functor for bodies " + pairName(I->getId1(), I->getId2()) + " (shapes " + (b1 ? b1->shape->getClassName() : "?") + ", "
-			        + (b2 ? b2->shape->getClassName() : "?")
-			        + "): Contact Dynamics supports Sphere–Sphere, Wall–Sphere, Facet–Sphere and Box–Sphere (see yadecd.engines()).");
+	InteractionContainer& container = *scene->interactions;
+	const long            ni        = long(container.size());
+#ifdef YADE_OPENMP
+	const int nt = ni >= 4096 ? omp_get_max_threads() : 1;
+#else
+	const int nt = 1;
+#endif
+	std::vector<std::vector<Key>> parts(nt);
+	std::vector<long>             firstBad(nt, ni);
+#pragma omp parallel num_threads(nt) if (nt > 1)
+	{
+#ifdef YADE_OPENMP
+		const int t = omp_get_thread_num();
+#else
+		const int t = 0;
+#endif
+		std::vector<Key>& part = parts[t];
+		part.reserve(size_t(core.contacts.size() / nt + 64));
+#pragma omp for schedule(static)
+		for (long i = 0; i < ni; ++i) {
+			const shared_ptr<Interaction>& I = container[i];
+			if (!I->isReal() || !I->functorCache.geomExists) {
+				if (!I->functorCache.geomExists && firstBad[t] == ni && !interactionProblem(*I).empty()) firstBad[t] = i;
+				continue;
+			}
+			const int id1 = mover[I->getId1()], id2 = mover[I->getId2()];
+			if (!core.records[id1].dynamic && !core.records[id2].dynamic) continue; // obstacles never exchange impulses
+			if (firstBad[t] == ni && !interactionProblem(*I).empty()) {
+				firstBad[t] = i;
+				continue;
+			}
+			part.push_back(Key { up.dot(static_cast<const ScGeom*>(I->geom.get())->contactPoint), id1, id2, &I });
 		}
-		if (!I->isReal()) continue;
-		if (!core.records[mover[I->getId1()]].dynamic && !core.records[mover[I->getId2()]].dynamic) continue; // obstacles never exchange impulses
-		auto* phys = dynamic_cast<CDPhys*>(I->phys.get());
-		auto* geom = dynamic_cast<ScGeom*>(I->geom.get());
-		if (!phys || !geom)
-			throw std::invalid_argument(
-			        "interaction " + pairName(I->getId1(), I->getId2()) + " has " + I->geom->getClassName() + "/" + I->phys->getClassName()
-			        + ": ContactDynamicsIntegrator needs ScGeom and CDPhys (use Ip2_FrictMat_FrictMat_CDPhys and Law2_ScGeom_CDPhys_Coulomb).");
-		const Real mu = phys->tangensOfFrictionAngle;
-		if (!(mu >= 0) || !std::isfinite(mu))
-			throw std::invalid_argument(
-			        "contact " + pairName(I->getId1(), I->getId2()) + " has friction coefficient " + std::to_string(mu)
-			        + ": check the frictionAngle of both bodies' materials (must be in [0, pi/2)).");
-		if (!(phys->en >= 0 && phys->en <= 1) || !(phys->et >= -1 && phys->et <= 1))
-			throw std::invalid_argument("contact " + pairName(I->getId1(), I->getId2()) + " has restitution en, et outside [0,1], [-1,1].");
-		keys.push_back(Key { up.dot(geom->contactPoint), mover[I->getId1()], mover[I->getId2()], &I });
 	}
+	const long bad = *std::min_element(firstBad.begin(), firstBad.end());
+	if (bad < ni) throw std::invalid_argument(interactionProblem(*container[bad]));
+	std::vector<Key> keys;
+	for (auto& part : parts)
+		keys.insert(keys.end(), part.begin(), part.end());
 	// The base sweep order (cd::ContactSet::sortByHeight's): by height, ties by body ids.
 	const long        nc = long(keys.size());
 	std::vector<long> order(nc);

@@ -102,6 +102,7 @@ private:
 	void       checkScene();
 	void       checkInheritedAttributes() const;
 	void       gatherContacts();
+	std::string interactionProblem(const Interaction& I) const;
 	void       predictPositions();
 	void       moveClumpMembers();
 	void       startCellStep();

@@ -67,6 +67,21 @@ class TestBadInput(unittest.TestCase):
             O.materials[0].frictionAngle = angle
             self.assertStepFails(ValueError, 'friction', '#0', '#%d' % sc['ids'][0])
 
+    def test_first_bad_contact_of_many_is_named(self):
+        """Among more interactions than one thread's share (at least 4096: the gather checks them in
+        parallel blocks), the contact named is the first bad one in the container's order, whatever
+        the thread count: two contacts given a NaN friction coefficient, the later one in the
+        container is not the one named."""
+        scenes.fcc_block(1000)
+        O.step()
+        self.assertGreaterEqual(len(O.interactions), 4096)
+        real = [i for i in O.interactions if i.isReal]
+        early, late = real[len(real) // 3], real[-1]
+        for i in (late, early):
+            i.phys.tangensOfFrictionAngle = float('nan')
+        e = self.assertStepFails(ValueError, 'friction coefficient nan', '(#%d, #%d)' % (early.id1, early.id2))
+        self.assertNotIn('(#%d, #%d)' % (late.id1, late.id2), str(e))
+
     def test_mass_and_inertia(self):
         sc = scenes.column(2)
         O.bodies[sc['ids'][1]].state.mass = 0
