@@ -483,72 +483,41 @@ namespace cd {
 
 	// Nesterov momentum over whole sweeps. The velocities are affine in the impulses,
 	// V(r) = u_free + M⁻¹ H r, so the start of the next sweep, y = x_k + β (x_k − x_{k−1}), has
-	// velocities V(x_k) + β (V(x_k) − V(x_{k−1})); where y leaves a contact's cone it is projected,
-	// and the projection's impulse is applied to the two bodies. One pass over the contacts in the
-	// schedule's order does both: a body's velocities are extrapolated when the pass first meets
-	// it, before any projection can touch it, so the result is that of a pass over all bodies
-	// followed by one over the contacts, bit for bit, at the memory traffic of one pass. The
-	// dynamic bodies that no contact meets (falling grains) are extrapolated from a list: their
-	// v = v_prev, but v + β·0 turns a −0 into +0, as the pass over all bodies did.
+	// velocities V(x_k) + β (V(x_k) − V(x_{k−1})): one pass over bodies. Where y leaves a contact's
+	// cone it is projected, and the projection's impulse is applied to the two bodies.
 	void Solver::startMomentum()
 	{
-		const long nc = long(contacts.size());
-		const int  nb = int(bodies.size());
-		rPrev.resize(nc);
-		momentumPair.resize(2 * nc);
-		for (long k = 0; k < nc; ++k) {
-			rPrev[k]                 = contacts.state[k].r;
-			const ContactInfo& c     = contacts.info[k];
-			momentumPair[2 * k]     = records[c.b1].dynamic ? c.b1 : nb;
-			momentumPair[2 * k + 1] = records[c.b2].dynamic ? c.b2 : nb;
-		}
-		vPrev.resize(nb);
-		wPrev.resize(nb);
-		for (int b = 0; b < nb; ++b) {
+		rPrev.resize(contacts.size());
+		for (size_t k = 0; k < contacts.size(); ++k)
+			rPrev[k] = contacts.state[k].r;
+		vPrev.resize(bodies.size());
+		wPrev.resize(bodies.size());
+		for (size_t b = 0; b < bodies.size(); ++b) {
 			vPrev[b] = bodies[b].v;
 			wPrev[b] = bodies[b].w;
 		}
-		momentumStamp.assign(nb + 1, 0);
-		momentumEpoch = 0;
-		std::vector<char> met(nb + 1, 0);
-		for (int b : momentumPair)
-			met[b] = 1;
-		momentumLoose.clear();
-		for (int b = 0; b < nb; ++b)
-			if (records[b].dynamic && !met[b]) momentumLoose.push_back(b);
 	}
 
 	void Solver::extrapolate(Real beta)
 	{
-		++momentumEpoch;
-		for (int b : momentumLoose)
-			extrapolateBody(b, beta);
+		const long nb = long(bodies.size());
+#pragma omp parallel for schedule(static) if (sweepThreads && nb >= 4096)
+		for (long b = 0; b < nb; ++b) { // obstacles: v = vPrev (never written), unchanged
+			Body&          B = bodies[b];
+			const Vector3r v = B.v, w = B.w;
+			B.v += beta * (v - vPrev[b]);
+			B.w += beta * (w - wPrev[b]);
+			vPrev[b] = v;
+			wPrev[b] = w;
+		}
 		order.run([&](int, long begin, long end) { extrapolateRange(begin, end, beta); });
 	}
 
-	// Body b's velocities extrapolated, once per pass (the slot bodies.size() stands for obstacles,
-	// whose velocities are never written). A parallel stage's ranges share no body, so one thread
-	// writes a body's stamp in a stage, and a later stage sees it.
-	CD_HOT void Solver::extrapolateBody(int b, Real beta)
-	{
-		if (momentumStamp[b] == momentumEpoch) return;
-		momentumStamp[b] = momentumEpoch;
-		if (b == int(bodies.size())) return;
-		Body&          B = bodies[b];
-		const Vector3r v = B.v, w = B.w;
-		B.v += beta * (v - vPrev[b]);
-		B.w += beta * (w - wPrev[b]);
-		vPrev[b] = v;
-		wPrev[b] = w;
-	}
-
-	// The extrapolation for contacts [begin, end) and, first, their bodies: y = x + β(x − x_prev);
-	// where y leaves the cone, its projection, whose impulse is applied to the two bodies.
+	// The contact part of the extrapolation for contacts [begin, end): y = x + β(x − x_prev); where
+	// y leaves the cone, its projection, whose impulse is applied to the two bodies.
 	void Solver::extrapolateRange(long begin, long end, Real beta)
 	{
 		for (long k = begin; k < end; ++k) {
-			extrapolateBody(momentumPair[2 * k], beta);
-			extrapolateBody(momentumPair[2 * k + 1], beta);
 			Vector3r&      r = contacts.state[k].r;
 			const Vector3r x = r;
 			if (x == rPrev[k]) continue; // unchanged (open contacts mostly): y = x

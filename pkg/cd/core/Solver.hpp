@@ -61,13 +61,6 @@ namespace cd {
 		enum SweepMode { Full = 0, Marking = 1, Partial = 2 };
 		std::vector<Vector3r> rPrev;        // momentum: impulses after the previous sweep
 		std::vector<Vector3r> vPrev, wPrev; // momentum: body velocities after the previous sweep
-		// momentum: per contact its two dynamic bodies (bodies.size() for an obstacle), and per body
-		// the last extrapolation that moved it (a body is extrapolated when the pass first meets it)
-		std::vector<int>      momentumPair;
-		std::vector<int>      momentumStamp;
-		std::vector<int>      momentumLoose; // dynamic bodies without contacts (met by no contact)
-		int                   momentumEpoch = 0;
-		void                  extrapolateBody(int b, Real beta);
 
 		/*! One contact's row of the position correction: all that a correction sweep reads. */
 		struct CorrectionRow {
