@@ -106,6 +106,8 @@ class TestRecords(unittest.TestCase):
                 write('cd_I%g_n2000_s1' % I, 'cd', I, 0.35 + I, 0.003, dict(dgamma=5e-4, dt_max=0.05, tolerance=1e-3))
             write('cd_I0.03_n2000_s1_en0.1', 'cd', 0.03, 0.43, 0.004, dict(dgamma=5e-4, dt_max=0.05, tolerance=1e-3, en_cd=0.1))
             write('md_I0.03_n2000_s1_stiff', 'md', 0.03, 0.40, 0.004, dict(young_over_p=1e6, en_md=0.1))
+            with open(os.path.join(tmp, 'cd_I0.3_n2000_s1.ckpt.json'), 'w') as f:     # a checkpoint: not a record
+                json.dump(dict(method='cd', I=0.3, samples=20), f)
             rs = rheology.load_records(tmp)
             self.assertEqual(sorted(r['variant'] for r in rs), ['', '', '', 'en_cd=0.1', 'young_over_p=1e+06'])
             fit = rheology.fit_laws(rs, 'cd')

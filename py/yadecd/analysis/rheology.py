@@ -55,6 +55,8 @@ def load_records(directory):
     method and I."""
     out = []
     for path in sorted(glob.glob(os.path.join(directory, '*_I*_n*_s*.json'))):
+        if path.endswith('.ckpt.json'):          # a run's checkpoint bookkeeping, not its record
+            continue
         with open(path) as f:
             r = json.load(f)
         s = r['summary']
