@@ -131,5 +131,26 @@ class TestRecords(unittest.TestCase):
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+class TestSolverWork(unittest.TestCase):
+
+    def test_constructed_runs(self):
+        """Samples every 20 steps at a strain of 1e-4 per step (10 000 steps per unit strain); a
+        sample's sweeps per step alternate 100 and 300: over the window (0.01, 0.05] the 20
+        samples average 200 sweeps, 2e6 sweeps per unit strain; a run at half the step with a
+        quarter of the sweeps does half the work. Samples outside the window do not count; an
+        empty window is refused."""
+        def run(per_step, sweeps):
+            return [dict(step=20.0 * k, strain=20 * per_step * k, sweeps=sweeps[k % 2]) for k in range(1, 61)]
+        a = rheology.solver_work(run(1e-4, (100.0, 300.0)), 0.01, 0.05)
+        self.assertEqual(a['samples'], 20)
+        self.assertAlmostEqual(a['sweeps_per_step'], 200.0, delta=1e-12)
+        self.assertAlmostEqual(a['steps_per_strain'], 1e4, delta=1e-6)
+        self.assertAlmostEqual(a['sweeps_per_strain'], 2e6, delta=1e-3)
+        b = rheology.solver_work(run(5e-5, (25.0, 75.0)), 0.01, 0.05)
+        self.assertAlmostEqual(b['sweeps_per_strain'] / a['sweeps_per_strain'], 0.5, delta=1e-12)
+        with self.assertRaisesRegex(ValueError, r'1 sample\(s\) in the strain window'):
+            rheology.solver_work(run(1e-4, (1.0, 1.0)), 0.1185, 0.1205)
+
+
 if __name__ == '__main__':
     unittest.main()

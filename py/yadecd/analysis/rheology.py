@@ -13,8 +13,8 @@ import os
 
 import numpy as np
 
-__all__ = ['LITERATURE', 'PROTOCOL', 'variant_of', 'load_records', 'weighted_line', 'fit_laws', 'table_markdown',
-           'drift_cell', 'variants_markdown', 'figure']
+__all__ = ['LITERATURE', 'PROTOCOL', 'variant_of', 'load_records', 'read_samples', 'solver_work', 'weighted_line', 'fit_laws',
+           'table_markdown', 'drift_cell', 'variants_markdown', 'figure']
 
 #: the reference protocol of each method (the defaults of ``scripts/shear_rheology.py`` and of
 #: :func:`yadecd.compare.shear.build`): CD's shear strain per step, largest step over t_i, solver
@@ -68,6 +68,28 @@ def load_records(directory):
                         steps=r['steps'], travel=r.get('strain'), skip=s.get('skip_strain'), wall_s=r['wall_s'], dt=r['dt'], ti=r['ti'], samples=s['samples'], path=path,
                         variant=variant_of(r['method'], r.get('options', {}))))
     return sorted(out, key=lambda r: (r['method'], r['I']))
+
+
+def read_samples(path):
+    """A run's samples file (``<stem>.csv``, the columns of
+    :data:`yadecd.compare.shear.SAMPLE_FIELDS`) as a list of dicts of floats."""
+    import csv
+    with open(path, newline='') as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def solver_work(samples, lo, hi):
+    """CD's solver work over the wall travel (strain) window (lo, hi] of a run's samples (dicts
+    with step, strain and sweeps, the mean sweeps per step of each sample's steps): the samples in
+    the window, the mean sweeps per step, the steps per unit strain (between the window's first and
+    last samples) and their product, the sweeps per unit strain, which compares runs at different
+    time steps. Raises ValueError when fewer than two samples fall in the window."""
+    w = [r for r in samples if lo < r['strain'] <= hi]
+    if len(w) < 2:
+        raise ValueError('solver_work: %d sample(s) in the strain window (%g, %g]' % (len(w), lo, hi))
+    sweeps = sum(r['sweeps'] for r in w) / len(w)
+    steps = (w[-1]['step'] - w[0]['step']) / (w[-1]['strain'] - w[0]['strain'])
+    return dict(samples=len(w), sweeps_per_step=sweeps, steps_per_strain=steps, sweeps_per_strain=sweeps * steps)
 
 
 def weighted_line(x, y, err):
