@@ -15,16 +15,15 @@ uninterrupted run, for CD); with --extend and a larger --strain, a finished run 
 its final checkpoint and its record is remade over the longer window.
 """
 import argparse
-import csv
 import glob
 import json
 import os
 import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-from yadecd.analysis.rheology import PROTOCOL  # noqa: E402
+from yadecd.analysis import rheology  # noqa: E402
 from yadecd.compare import shear  # noqa: E402
-from yadecd.io import append_csv, provenance, write_json_atomic  # noqa: E402
+from yadecd.io import append_csv, provenance, write_csv, write_json_atomic  # noqa: E402
 
 parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
 parser.add_argument('--out', required=True)
@@ -34,7 +33,7 @@ parser.add_argument('--n', type=int, default=2000, help='spheres in the cell')
 parser.add_argument('--seed', type=int, default=1)
 parser.add_argument('--strain', type=float, default=3.0, help='top wall travel over the gap in each run')
 parser.add_argument('--skip-strain', type=float, default=1.0, help='strain discarded as the transient')
-CD, MD = PROTOCOL['cd'], PROTOCOL['md']
+CD, MD = rheology.PROTOCOL['cd'], rheology.PROTOCOL['md']
 parser.add_argument('--dgamma', type=float, default=CD['dgamma'], help='CD: shear strain per step (h = dgamma/γ̇, at most dt_max·t_i)')
 parser.add_argument('--dt-max', type=float, default=CD['dt_max'], help='CD: largest time step over the inertial time t_i')
 parser.add_argument('--tolerance', type=float, default=CD['tolerance'], help='CD: solver tolerance (as the pile protocol)')
@@ -85,14 +84,14 @@ def remove_run(stem):
 def rows_to_resume(stem, samples):
     """The first ``samples`` rows of the run's samples file, which is rewritten with only them
     (rows measured after the checkpoint are measured again)."""
-    with open(stem + '.csv', newline='') as f:
-        rows = [tuple(float(row[k]) for k in fields) for row in csv.DictReader(f)]
+    rows = [tuple(r[k] for k in fields) for r in rheology.read_samples(stem + '.csv')]
     if len(rows) < samples:
         sys.exit('%s.csv has %d rows, its checkpoint %d: the run cannot be resumed (use --overwrite)' % (stem, len(rows), samples))
     rows = rows[:samples]
-    append_csv(stem + '.csv', None, fields, start=True, stamp=False)
-    for row in rows:
-        append_csv(stem + '.csv', dict(zip(fields, row)), fields, stamp=False)
+    if rows:
+        write_csv(stem + '.csv', [dict(zip(fields, row)) for row in rows], log=lambda m: None, stamp=False)
+    else:
+        append_csv(stem + '.csv', None, fields, start=True, stamp=False)
     return rows
 
 

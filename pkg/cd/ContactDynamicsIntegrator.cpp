@@ -319,9 +319,6 @@ void ContactDynamicsIntegrator::checkScene()
 	}
 }
 
-// Stage 1: every CD contact into the core's contact set, then in a fixed order (by height along
-// −gravity, ties by (id1, id2)): the interaction container's own order changes after O.load or
-// an erase, and Gauss–Seidel depends on order.
 // Why interaction I cannot take part in the solve ("" when it can, or when it is skipped: two
 // obstacles, a potential interaction).
 std::string ContactDynamicsIntegrator::interactionProblem(const Interaction& I) const
@@ -348,6 +345,9 @@ std::string ContactDynamicsIntegrator::interactionProblem(const Interaction& I) 
 	return "";
 }
 
+// Stage 1: every CD contact into the core's contact set, in the base sweep order: by height
+// along −gravity, ties by body ids (a key of the state only: the interaction container's own order
+// changes after O.load or an erase, and Gauss–Seidel depends on order).
 void ContactDynamicsIntegrator::gatherContacts()
 {
 	// Pass 1: the contacts that take part (real, CDPhys/ScGeom, a dynamic body on one side), each
@@ -401,7 +401,7 @@ void ContactDynamicsIntegrator::gatherContacts()
 	std::vector<Key> keys;
 	for (auto& part : parts)
 		keys.insert(keys.end(), part.begin(), part.end());
-	// The base sweep order (cd::ContactSet::sortByHeight's): by height, ties by body ids.
+	// The base sweep order.
 	const long        nc = long(keys.size());
 	std::vector<long> order(nc);
 	std::iota(order.begin(), order.end(), 0L);

@@ -2,7 +2,6 @@
 #include "Problem.hpp"
 
 #include <algorithm>
-#include <numeric>
 
 namespace yade {
 namespace cd {
@@ -45,18 +44,6 @@ namespace cd {
 		permuteArray(info, order);
 		permuteArray(state, order);
 		permuteArray(sphere, order);
-	}
-
-	void ContactSet::sortByHeight()
-	{
-		std::vector<long> order(size());
-		std::iota(order.begin(), order.end(), 0L);
-		std::sort(order.begin(), order.end(), [this](long a, long b) {
-			const ContactInfo &ca = info[a], &cb = info[b];
-			if (ca.height != cb.height) return ca.height < cb.height;
-			return ca.b1 < cb.b1 || (ca.b1 == cb.b1 && ca.b2 < cb.b2);
-		});
-		permute(order);
 	}
 
 } // namespace cd

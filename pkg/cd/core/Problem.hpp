@@ -115,9 +115,6 @@ namespace cd {
 		void resize(size_t n);
 		/*! Store the contacts in the given order: contact j ← contact order[j]. */
 		void permute(const std::vector<long>& order);
-		/*! The base sweep order: by height along −gravity, ties by body ids (a key of the state
-		 *  only, so that a saved and reloaded scene sweeps in the same order). */
-		void sortByHeight();
 	};
 
 	/*! The solver's options (ContactDynamicsIntegrator's attributes of the same names). */

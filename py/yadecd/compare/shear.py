@@ -262,7 +262,7 @@ def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sampl
         info = build(path, method, I, **options)
         bottom, top, grains, members = _parts()
         rows, wall_before = [], 0.0
-        info.update(x0=top.state.pos[0], iter0=O.iter, packing=path)
+        info.update(x0=top.state.pos[0], iter0=O.iter)
     else:
         if (state['method'], state['I'], state['options']) != (method, I, jsonable(options)):
             raise ValueError('the checkpoint %s.ckpt.json is of %s at I=%g with %s, not of %s at I=%g with %s' % (
@@ -305,7 +305,7 @@ def run(path, method, I, strain=3.0, samples_per_strain=100, log=print, on_sampl
         if (k + 1) % checkpoint_every == 0 and k + 1 < n_samples:
             keep()
     keep(final=True)
-    out = {k: v for k, v in info.items() if k not in ('x0', 'iter0', 'packing')}
+    out = {k: v for k, v in info.items() if k not in ('x0', 'iter0')}
     out.update(per_sample=per_sample, n_samples=n_samples, strain=strain, steps=O.iter - info['iter0'],
                wall_s=wall_before + time.time() - start, n=len(grains), area=area, d=float(options.get('d', REFERENCE['d'])),
                rho=float(options.get('rho', REFERENCE['rho'])), p=float(options.get('p', REFERENCE['p'])))
