@@ -40,6 +40,8 @@ parser.add_argument('--tolerance', type=float, default=CD['tolerance'], help='CD
 parser.add_argument('--en-cd', type=float, default=CD['en_cd'], help="CD: normal restitution (Moreau's law)")
 parser.add_argument('--young-over-p', type=float, default=MD['young_over_p'], help="MD: Young's modulus over p")
 parser.add_argument('--en-md', type=float, default=MD['en_md'], help='MD: normal restitution')
+parser.add_argument('--es-md', type=float, default=MD['es_md'], help='MD: tangential restitution (1: no tangential viscous damping)')
+parser.add_argument('--safety', type=float, default=MD['safety'], help="MD: time step over YADE's P-wave time step")
 parser.add_argument('--tag', default='', help='suffix of the run files (<method>_I<I>_n<N>_s<seed>_<tag>), for runs off the '
                     'reference protocol or of another travel; the analysis tells variants by their options, not by the tag')
 parser.add_argument('--overwrite', action='store_true', help='redo runs whose results exist (their files removed first)')
@@ -70,7 +72,7 @@ else:
     log('packing: made, gap %.2f mm, phi %.4f, %d steps -> %s' % (made['gap'] * 1e3, made['phi'], made['steps'], pack_path))
 
 options = dict(dgamma=args.dgamma, dt_max=args.dt_max, tolerance=args.tolerance, en_cd=args.en_cd) if args.method == 'cd' else \
-    dict(young_over_p=args.young_over_p, en_md=args.en_md)
+    dict(young_over_p=args.young_over_p, en_md=args.en_md, es_md=args.es_md, safety=args.safety)
 fields = list(shear.SAMPLE_FIELDS)
 
 

@@ -125,10 +125,46 @@ class TestRecords(unittest.TestCase):
             self.assertIn('| – | – | – |', md_row)
             self.assertEqual(rheology.variants_markdown([r for r in rs if not r['variant']]), '')
             self.assertEqual(rheology.variant_of('md', {'en_md': 0.1}), '')
+            # records made before an option existed have its reference value
+            self.assertEqual(rheology.variant_of('md', {'young_over_p': 1e5, 'en_md': 0.1}), '')
+            self.assertEqual(rheology.variant_of('md', {'young_over_p': 1e5, 'en_md': 0.1, 'es_md': 1.0, 'safety': 0.25}),
+                             'es_md=1, safety=0.25')
             with self.assertRaisesRegex(ValueError, 'unknown cd shear option.*damping'):
                 rheology.variant_of('cd', {'damping': 0.2})
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+class TestCoulombExcess(unittest.TestCase):
+    """rheology.coulomb_excess on constructed forces with known answers."""
+
+    def test_known_excess(self):
+        # mu = 0.5; loaded contacts: at the bound (not over), inside it (ratio 0.4), 20 % over, 100 % over;
+        # an open contact (F_n = 0, F_t = 0) and one with F_n = 0 but F_t > 0 (not loaded: left out)
+        fn = [2.0, 5.0, 1.0, 4.0, 0.0, 0.0]
+        ft = [1.0, 1.0, 0.6, 4.0, 0.0, 3.0]
+        e = rheology.coulomb_excess(fn, ft, 0.5)
+        self.assertEqual(e['loaded'], 4)
+        self.assertAlmostEqual(e['over'], 0.5, places=15)
+        self.assertAlmostEqual(e['excess_mean'], (0.2 + 1.0) / 2, places=14)
+        self.assertAlmostEqual(e['excess_max'], 1.0, places=14)
+        self.assertAlmostEqual(e['mobilised'], (1.0 + 0.4 + 1.0 + 1.0) / 4, places=14)
+        self.assertAlmostEqual(e['tangential_share'], (0.1 + 2.0) / (1.0 + 1.0 + 0.6 + 4.0), places=14)
+
+    def test_tolerance_and_edges(self):
+        # a rounding-level excess is within rtol; no loaded contact gives zeros and nan mobilisation
+        e = rheology.coulomb_excess([1.0], [0.5 * (1 + 1e-9)], 0.5)
+        self.assertEqual(e['over'], 0.0)
+        self.assertEqual(rheology.coulomb_excess([1.0], [0.5 * (1 + 1e-3)], 0.5)['over'], 1.0)
+        e = rheology.coulomb_excess([0.0, 0.0], [0.0, 1.0], 0.5)
+        self.assertEqual((e['loaded'], e['over'], e['excess_mean']), (0, 0.0, 0.0))
+        self.assertTrue(math.isnan(e['mobilised']))
+        with self.assertRaisesRegex(ValueError, '2 normal and 1 tangential'):
+            rheology.coulomb_excess([1.0, 1.0], [0.1], 0.5)
+        with self.assertRaisesRegex(ValueError, 'non-negative'):
+            rheology.coulomb_excess([-1.0], [0.1], 0.5)
+        with self.assertRaisesRegex(ValueError, 'friction coefficient'):
+            rheology.coulomb_excess([1.0], [0.1], 0.0)
 
 
 class TestSolverWork(unittest.TestCase):

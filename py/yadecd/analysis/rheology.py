@@ -13,16 +13,17 @@ import os
 
 import numpy as np
 
-__all__ = ['LITERATURE', 'PROTOCOL', 'variant_of', 'load_records', 'read_samples', 'solver_work', 'weighted_line', 'fit_laws',
+__all__ = ['LITERATURE', 'PROTOCOL', 'variant_of', 'load_records', 'read_samples', 'solver_work', 'coulomb_excess', 'weighted_line', 'fit_laws',
            'table_markdown', 'drift_cell', 'variants_markdown', 'figure']
 
 #: the reference protocol of each method (the defaults of ``scripts/shear_rheology.py`` and of
 #: :func:`yadecd.compare.shear.build`): CD's shear strain per step, largest step over t_i, solver
-#: tolerance and normal restitution; MD's Young's modulus over p and normal restitution. A run with
+#: tolerance and normal restitution; MD's Young's modulus over p, normal and tangential restitution
+#: (Hertz–Mindlin's viscous damping) and time step over YADE's P-wave step (``safety``). A run with
 #: other values is a *variant*: kept out of the fitted laws and compared with its reference run.
 PROTOCOL = {
     'cd': dict(dgamma=5e-4, dt_max=0.05, tolerance=1e-3, en_cd=0.0),
-    'md': dict(young_over_p=1e5, en_md=0.1),
+    'md': dict(young_over_p=1e5, en_md=0.1, es_md=0.1, safety=0.5),
 }
 
 #: published μ(I) laws drawn for reference: name → (μ_s, μ_2, I_0, source, system)
@@ -90,6 +91,38 @@ def solver_work(samples, lo, hi):
     sweeps = sum(r['sweeps'] for r in w) / len(w)
     steps = (w[-1]['step'] - w[0]['step']) / (w[-1]['strain'] - w[0]['strain'])
     return dict(samples=len(w), sweeps_per_step=sweeps, steps_per_strain=steps, sweeps_per_strain=sweeps * steps)
+
+
+def coulomb_excess(fn, ft, mu, rtol=1e-6):
+    """How far contact forces go beyond Coulomb's bound |F_t| ≤ μ·F_n. ``fn``: the normal force
+    magnitudes [N], ``ft``: the tangential force magnitudes [N] (arrays of one length), ``mu``: the
+    friction coefficient. Only loaded contacts (F_n > 0) count. Returns a dict: ``loaded`` (their
+    number), ``over`` (the share of them with |F_t| > μ·F_n·(1 + ``rtol``)), ``excess_mean`` (the
+    mean of |F_t|/(μ·F_n) − 1 over those, 0 when none), ``excess_max`` (its largest value, 0 when
+    none), ``mobilised`` (the mean of min(|F_t|/(μ·F_n), 1) over the loaded contacts: the
+    friction mobilised within the bound) and ``tangential_share`` (the part of Σ|F_t| beyond the
+    bound, Σ max(|F_t| − μ·F_n, 0)/Σ|F_t|). Raises ValueError for arrays of different lengths, a
+    negative force or a friction coefficient that is not positive."""
+    fn, ft = np.asarray(fn, dtype=float).ravel(), np.asarray(ft, dtype=float).ravel()
+    if fn.shape != ft.shape:
+        raise ValueError('coulomb_excess: %d normal and %d tangential forces' % (fn.size, ft.size))
+    if (fn < 0).any() or (ft < 0).any():
+        raise ValueError('coulomb_excess: force magnitudes must be non-negative')
+    if not mu > 0:
+        raise ValueError('coulomb_excess: the friction coefficient must be positive, not %r' % (mu,))
+    loaded = fn > 0
+    fn, ft = fn[loaded], ft[loaded]
+    if fn.size == 0:
+        return dict(loaded=0, over=0.0, excess_mean=0.0, excess_max=0.0, mobilised=float('nan'), tangential_share=0.0)
+    ratio = ft / (mu * fn)
+    over = ratio > 1.0 + rtol
+    beyond = np.maximum(ft - mu * fn, 0.0)
+    total = ft.sum()
+    return dict(loaded=int(fn.size), over=float(over.mean()),
+                excess_mean=float((ratio[over] - 1.0).mean()) if over.any() else 0.0,
+                excess_max=float((ratio[over] - 1.0).max()) if over.any() else 0.0,
+                mobilised=float(np.minimum(ratio, 1.0).mean()),
+                tangential_share=float(beyond.sum() / total) if total > 0 else 0.0)
 
 
 def weighted_line(x, y, err):

@@ -144,31 +144,36 @@ def packing(path, n=2000, seed=1, tolerance=1e-3, max_steps=20000, settle_steps=
     return dict(side=side, gap=sample['gap'], phi=sample['phi'], steps=steps, n=n, seed=seed, **r)
 
 
-def _md_engines(young, en):
-    """YADE's MD engines for the shear: Hertz–Mindlin with restitution ``en`` (its viscous
-    damping), no global damping (:func:`yadecd.compare.md.md_engines`)."""
+def _md_engines(young, en, es):
+    """YADE's MD engines for the shear: Hertz–Mindlin with normal and tangential restitution ``en``
+    and ``es`` (its viscous damping; ``es`` = 1: none in the tangential direction), no global damping
+    (:func:`yadecd.compare.md.md_engines`)."""
     from .md import md_engines
     for m in O.materials:
         m.young = young
         m.poisson = 0.25
-    return md_engines(gravity=(0, 0, 0), law='hertz', damping=0.0, en=en)
+    return md_engines(gravity=(0, 0, 0), law='hertz', damping=0.0, en=en, es=es)
 
 
 def build(path, method, I, dgamma=PROTOCOL['cd']['dgamma'], dt_max=PROTOCOL['cd']['dt_max'],
           tolerance=PROTOCOL['cd']['tolerance'], en_cd=PROTOCOL['cd']['en_cd'], young_over_p=PROTOCOL['md']['young_over_p'],
-          en_md=PROTOCOL['md']['en_md'], safety=0.5, **ref):
+          en_md=PROTOCOL['md']['en_md'], es_md=PROTOCOL['md']['es_md'], safety=PROTOCOL['md']['safety'], **ref):
     """The packing saved at ``path`` (:func:`packing`) sheared at the inertial number ``I`` by
     ``method`` ('cd' or 'md'): the top wall moves at V = γ̇·gap with γ̇ = I·sqrt(p/ρ)/d̄ (the bulk
     rate is measured; wall slip makes it smaller). CD: time step h = min(dgamma/γ̇, dt_max·t_i),
     solver ``tolerance``, normal restitution ``en_cd`` (Moreau's law; 0 by default, given to the
     packing's contacts and to new ones). MD: Young's modulus E = ``young_over_p``·p, restitution
-    ``en_md``, h = ``safety``·PWaveTimeStep. The defaults are the reference protocol
+    ``en_md`` and tangential restitution ``es_md`` (YADE's Hertz–Mindlin law adds its tangential
+    viscous force to a sticking contact's elastic force without bounding the sum by Coulomb's
+    limit; ``es_md`` = 1 removes it), h = ``safety``·PWaveTimeStep. The defaults are the reference protocol
     (:data:`yadecd.analysis.rheology.PROTOCOL`). Returns a dict (gamma_dot, V, dt, ti)."""
     if method not in ('cd', 'md'):
         raise ValueError("method must be 'cd' or 'md', not %r" % (method,))
+    if not 0 < safety <= 1:
+        raise ValueError('safety is the MD time step over the P-wave step, in (0, 1], not %r' % (safety,))
     if not 0 < I <= 1:
         raise ValueError('the inertial number I must be in (0, 1], not %r' % (I,))
-    for name, e in (('en_cd', en_cd), ('en_md', en_md)):
+    for name, e in (('en_cd', en_cd), ('en_md', en_md), ('es_md', es_md)):
         if not 0 <= e <= 1:
             raise ValueError('%s is a restitution coefficient, in [0, 1], not %r' % (name, e))
     r = dict(REFERENCE, **ref)
@@ -182,7 +187,7 @@ def build(path, method, I, dgamma=PROTOCOL['cd']['dgamma'], dt_max=PROTOCOL['cd'
     if method == 'md':
         press = [e for e in O.engines if isinstance(e, ForceEngine)]
         O.interactions.clear()       # CD's contacts (CDPhys); the collider makes them again as MD's
-        O.engines = _md_engines(young_over_p * p, en_md)
+        O.engines = _md_engines(young_over_p * p, en_md, es_md)
         O.engines = O.engines[:-1] + press + O.engines[-1:]
         O.dt = safety * utils.PWaveTimeStep()
     else:
