@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-__all__ = ['LITERATURE', 'PROTOCOL', 'variant_of', 'load_records', 'read_samples', 'solver_work', 'coulomb_excess', 'weighted_line', 'fit_laws',
+__all__ = ['LITERATURE', 'PROTOCOL', 'FIGURE_SERIES', 'variant_of', 'load_records', 'read_samples', 'solver_work', 'coulomb_excess', 'weighted_line', 'fit_laws',
            'table_markdown', 'drift_cell', 'variants_markdown', 'figure']
 
 #: the reference protocol of each method (the defaults of ``scripts/shear_rheology.py`` and of
@@ -31,6 +31,17 @@ LITERATURE = {
     'jop2006': (math.tan(math.radians(20.9)), math.tan(math.radians(32.76)), 0.279,
                 'Jop, Forterre & Pouliquen, Nature 441, 727 (2006)', 'glass beads, experiments (inclined planes)'),
 }
+
+
+#: the series of :func:`figure`: (method, variant as :func:`variant_of` names it, marker, colour, label).
+#: Besides the reference runs, MD without its tangential viscous damping (``es_md`` = 1), the MD whose
+#: contact forces keep within Coulomb's bound (YADE's Hertz–Mindlin law adds that damping to a sticking
+#: contact's force beyond the bound: docs/compare.md)
+FIGURE_SERIES = (
+    ('cd', '', 'o', 'C0', 'CD (this plugin)'),
+    ('md', '', 's', 'C3', "YADE's MD (Hertz–Mindlin, e_n = e_t = 0.1)"),
+    ('md', 'es_md=1', 'D', 'C2', "MD within Coulomb's bound (no tangential damping)"),
+)
 
 
 def mu_of_I(I, mu_s, mu_2, I0):
@@ -210,29 +221,28 @@ def variants_markdown(records):
 
 
 def figure(records, path, fits=None):
-    """μ(I) and φ(I) of every method with error bars (95 %: 2.26 batch-means standard errors;
-    open markers for runs whose steady window still drifts), the fitted lines, and the published
-    law of :data:`LITERATURE`; log I axis."""
+    """μ(I) and φ(I) of the series of :data:`FIGURE_SERIES` with error bars (95 %: 2.26 batch-means
+    standard errors; open markers for runs whose steady window still drifts), each method's fitted
+    lines (``fits``, through its reference runs), and the published law of :data:`LITERATURE`;
+    log I axis. Runs of other variants are not drawn."""
     from .figures import new_figure, save_figure
     fig = new_figure(9.0, 3.6)
     ax_mu, ax_phi = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
-    style = {'cd': ('o', 'C0', 'CD (this plugin)'), 'md': ('s', 'C3', "YADE's MD (Hertz–Mindlin)")}
+    fig.subplots_adjust(wspace=0.3)
     allI = [r['I'] for r in records if r['I'] > 0]
     if not allI:
         ax_mu.text(0.5, 0.5, 'no runs', transform=ax_mu.transAxes, ha='center')
         return save_figure(fig, path)
     grid = np.logspace(math.log10(min(allI)) - 0.2, math.log10(max(allI)) + 0.2, 100)
-    for method, (marker, colour, label) in style.items():
-        rs = [r for r in records if r['method'] == method and not r.get('variant')]
-        if not rs:
-            continue
+    for method, variant, marker, colour, label in FIGURE_SERIES:
+        rs = [r for r in records if r['method'] == method and r.get('variant', '') == variant]
         for k, r in enumerate(rs):       # open markers: the run's steady window still drifts
             face = 'none' if 'not steady' in drift_cell(r) else colour
             for ax, key in ((ax_mu, 'mu'), (ax_phi, 'phi')):
                 ax.errorbar([r['I']], [r[key]], yerr=[2.26 * r[key + '_err']], fmt=marker, color=colour, mfc=face,
                             label=label if k == 0 else None, capsize=2, ms=4)
-        f = (fits or {}).get(method)
-        if f and math.isfinite(f['mu_s']):
+        f = (fits or {}).get(method) if not variant else None
+        if rs and f and math.isfinite(f['mu_s']):
             ax_mu.plot(grid, f['mu_s'] + f['b'] * grid, '-', color=colour, lw=0.8)
             ax_phi.plot(grid, f['phi_c'] - f['a'] * grid, '-', color=colour, lw=0.8)
     for name, (mu_s, mu_2, I0, source, system) in LITERATURE.items():
