@@ -12,6 +12,7 @@ import numpy as np
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
 from yade import O, utils, Vector3
+from yadecd.analysis import rheology
 from yadecd.compare import shear
 
 
@@ -118,6 +119,28 @@ class TestCheckpoint(unittest.TestCase):
             shear.run(self.pack, 'cd', 0.1, strain=0.3, log=lambda m: None, checkpoint=stem, done_rows=got, en_cd=0.1)
         with self.assertRaisesRegex(ValueError, 'holds 10 samples, but 9 rows were given'):
             shear.run(self.pack, 'cd', 0.1, strain=0.3, log=lambda m: None, checkpoint=stem, done_rows=got[:9])
+
+    def test_md_tangential_damping_and_coulomb_bound(self):
+        """YADE's Hertz–Mindlin law adds its tangential viscous force to a sticking contact's elastic
+        force without bounding the sum (docs/compare.md): with the reference e_t = e_n = 0.1 some
+        loaded contacts carry |F_t| > μ·F_n; with e_t = 1 (``es_md=1``: no tangential damping) none
+        does, to the law's rounding (rheology.coulomb_excess, relative tolerance 1e-9). Bad values
+        of the MD options are refused by name."""
+        def excess(**options):
+            shear.build(self.pack, 'md', 0.1, **options)
+            O.run(300, True)
+            fn, ft = zip(*[(i.phys.normalForce.norm(), i.phys.shearForce.norm()) for i in O.interactions if i.isReal])
+            return rheology.coulomb_excess(fn, ft, shear.REFERENCE['mu'], rtol=1e-9)
+
+        damped, bounded = excess(), excess(es_md=1.0)
+        self.assertGreater(bounded['loaded'], 100)
+        self.assertEqual(bounded['over'], 0.0)
+        self.assertGreater(damped['over'], 0.0)
+        self.assertGreater(damped['tangential_share'], 0.0)
+        with self.assertRaisesRegex(ValueError, 'es_md is a restitution coefficient'):
+            shear.build(self.pack, 'md', 0.1, es_md=1.5)
+        with self.assertRaisesRegex(ValueError, 'safety is the MD time step'):
+            shear.build(self.pack, 'md', 0.1, safety=0.0)
 
     def test_md_resumes_the_same_state(self):
         info, straight = shear.run(self.pack, 'md', 0.1, strain=0.3, log=lambda m: None)
