@@ -12,14 +12,13 @@ core benchmark. Sweep counts do not depend on the machine's load, so this needs 
 import argparse
 import csv
 import os
-import re
-import subprocess
 import sys
 import tempfile
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..', 'py'))  # this checkout's yadecd
 
 from yadecd.io import provenance  # noqa: E402
+from sweep_counts import sweeps  # noqa: E402  (this directory's)
 
 #: the warm start's fields on a problem file's contact line (pkg/cd/core/ProblemFile.hpp)
 WARM = slice(33, 36)
@@ -55,17 +54,6 @@ def extrapolate(prev, cur, out, alpha):
     return n, m
 
 
-def sweeps(bench, path, threads):
-    """Sweeps of the core benchmark's solve of ``path`` to the file's tolerance."""
-    env = dict(os.environ, OMP_NUM_THREADS=str(threads))
-    text = subprocess.run([bench, path, '--repeat', '1', '--k1', '1', '--k2', '2'], env=env, capture_output=True, text=True,
-                          check=True).stdout
-    m = re.search(r'(\d+) sweeps \(', text)
-    if not m:
-        raise RuntimeError('%s: no sweep count in the benchmark output:\n%s' % (path, text))
-    return int(m.group(1))
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('stem', help='the saved steps STEM_0.cdp, STEM_1.cdp, ...')
@@ -83,12 +71,12 @@ def main():
     rows, prov = [], provenance()
     with tempfile.TemporaryDirectory(prefix='cd-warm-') as tmp:
         for k in range(1, args.count):
-            base = sweeps(args.bench, files[k], args.threads)
+            base = sweeps(args.bench, files[k], [], args.threads)
             row = dict(step=os.path.basename(files[k]), sweeps=base)
             for a in alphas:
                 out = os.path.join(tmp, 'x.cdp')
                 n, m = extrapolate(files[k - 1], files[k], out, a)
-                row.update({'contacts': n, 'extrapolated': m, 'sweeps_alpha_%g' % a: sweeps(args.bench, out, args.threads)})
+                row.update({'contacts': n, 'extrapolated': m, 'sweeps_alpha_%g' % a: sweeps(args.bench, out, [], args.threads)})
             print(', '.join('%s %s' % kv for kv in row.items()), flush=True)
             rows.append(dict(row, threads=args.threads, **prov))
     total = {k: sum(r[k] for r in rows) for k in rows[0] if k.startswith('sweeps')}

@@ -12,7 +12,7 @@
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
 //                            [--history OUT.csv] [--worklist 0|1] [--worklist-threshold ETA]
 //                            [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N]
-//                            [--bodies-in-sweep-order 0|1]
+//                            [--bodies-in-sweep-order 0|1] [--stall-window N]
 //
 // --trace writes where the work of one more solve (the file's step at the options given) goes:
 // PREFIX_change.npy and PREFIX_residual.npy (float32, sweeps × contacts: every contact's update
@@ -146,7 +146,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N]\n", what);
 	std::exit(2);
 }
 
@@ -156,7 +156,7 @@ int main(int argc, char** argv)
 {
 	if (argc < 2) usage("no problem file given");
 	std::string file = argv[1], csv, history, trace;
-	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1;
+	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1, stallWindow = -1;
 	double      workThreshold = -1;
 	int         k1 = 20, k2 = 120, repeat = 3;
 	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
@@ -185,6 +185,7 @@ int main(int argc, char** argv)
 		else if (a == "--trace") trace = v;
 		else if (a == "--max-iter") maxIter = std::stoi(v);
 		else if (a == "--bodies-in-sweep-order") bodyOrder = std::stoi(v);
+		else if (a == "--stall-window") stallWindow = std::stoi(v);
 		else usage(("unknown option " + a).c_str());
 	}
 	if (!(k1 >= 1 && k2 > k1 && repeat >= 1)) usage("need 1 ≤ k1 < k2 and repeat ≥ 1");
@@ -200,6 +201,7 @@ int main(int argc, char** argv)
 		if (parallelMin >= 0) p.parallelMinContacts = parallelMin;
 		if (maxIter > 0) p.maxIter = maxIter;
 		if (bodyOrder >= 0) p.bodiesInSweepOrder = bodyOrder;
+		if (stallWindow > 0) p.stallWindow = stallWindow;
 		if (worklist >= 0) p.worklist = worklist;
 		if (workThreshold > 0) p.worklistThreshold = workThreshold;
 		if (workFull >= 0) p.worklistFullSweeps = workFull;

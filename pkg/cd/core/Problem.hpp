@@ -143,6 +143,7 @@ namespace cd {
 		Real     worklistThreshold = 1;
 		int      worklistFullSweeps = 1;
 		bool     bodiesInSweepOrder = true; // the solve and the correction store the bodies in the order the sweep first meets them (the same results, bit for bit; false: by id, for benchmarks)
+		int      stallWindow = 50; // momentum's stall guard: sweeps without a 1 % smaller change before the strict restart (benchmarks; not saved in problem files)
 		bool     traceContacts = false; // diagnostics: SolveStats::traceChange/traceResidual (a residual pass per sweep; the solve itself is unchanged, bit for bit)
 	};
 

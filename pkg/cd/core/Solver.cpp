@@ -446,12 +446,12 @@ namespace cd {
 			const bool quiet = math::sqrt(change) <= p.tolerance * scale;
 			fullNext         = !full && quiet;
 			// Over-relaxation and a lenient momentum restart are not safe with friction: once the
-			// sweeps stop contracting (the smallest change so far not improved by 1% for 50 sweeps),
+			// sweeps stop contracting (the smallest change so far not improved by 1% for p.stallWindow sweeps, 50),
 			// finish the step with ω = 1 and momentum restarted at every growth.
 			if (change < 0.99 * bestChange) {
 				bestChange = change;
 				stalled    = 0;
-			} else if (++stalled >= 50 && (omega != 1 || restartGrowth != 1)) {
+			} else if (++stalled >= p.stallWindow && (omega != 1 || restartGrowth != 1)) {
 				omega         = 1;
 				restartGrowth = 1;
 				tNesterov     = 1;
