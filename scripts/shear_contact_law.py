@@ -7,7 +7,7 @@ loaded contacts beyond it and by how much (yadecd.analysis.rheology.coulomb_exce
 
 The packing is sheared as scripts/shear_rheology.py does (yadecd.compare.shear.build, the same
 options and defaults) through --skip of nominal strain (the transient), then the contacts are read
-every --every steps over --window of strain more. MD: the forces of YADE's Hertz-Mindlin law
+--reads times, evenly, over --window of strain more. MD: the forces of YADE's Hertz-Mindlin law
 (MindlinPhys.normalForce, .shearForce: the elastic and the viscous parts together), and the mean
 overlap over the mean diameter (ScGeom.penetrationDepth; CD's grains do not overlap). CD: the contact
 impulses over the step divided by the step (CDPhys.impulse split along the contact normal), which
@@ -59,29 +59,30 @@ mu = shear.REFERENCE['mu']
 
 
 def forces():
-    """(F_n, |F_t|) of every real contact now [N]; MD: the overlaps [m] in ``overlaps``."""
-    fn, ft = [], []
+    """(F_n, |F_t|, overlap) of every real contact now [N, N, m]; the overlap is MD's only (CD: none)."""
+    fn, ft, ov = [], [], []
     for i in O.interactions:
         if not i.isReal:
             continue
         if args.method == 'md':
             fn.append(i.phys.normalForce.norm())
             ft.append(i.phys.shearForce.norm())
-            overlaps.append(i.geom.penetrationDepth)
+            ov.append(i.geom.penetrationDepth)
         else:
             n = i.geom.normal
             jn = i.phys.impulse.dot(n)
             fn.append(max(jn, 0.0) / O.dt)
             ft.append((i.phys.impulse - jn * n).norm() / O.dt)
-    return fn, ft
+    return fn, ft, ov
 
 
 fn, ft, overlaps = [], [], []
 for _ in range(args.reads):
     O.run(every, True)
-    a, b = forces()
+    a, b, c = forces()
     fn += a
     ft += b
+    overlaps += c
 e = rheology.coulomb_excess(np.array(fn), np.array(ft), mu)
 variant = rheology.variant_of(args.method, options)
 label = args.label or (args.method.upper() + (', ' + variant if variant else ', reference'))

@@ -11,27 +11,26 @@ so variants are ranked on the total over many steps.
 Each --variant is NAME='cd_core_bench options'; the first is the reference of the ratios printed.
 """
 import argparse
-import csv
 import os
-import re
 import shlex
 import subprocess
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..', 'py'))  # this checkout's yadecd
 
-from yadecd.io import provenance  # noqa: E402
+from yadecd.io import write_csv  # noqa: E402
+from core_ab import parse  # noqa: E402  (this directory's: the figures of a cd_core_bench report)
 
 
 def sweeps(bench, path, options, threads=1):
     """Sweeps of the core benchmark's solve of the step ``path`` with ``options`` (a list)."""
     env = dict(os.environ, OMP_NUM_THREADS=str(threads))
-    text = subprocess.run([bench, path, '--repeat', '1', '--k1', '1', '--k2', '2'] + options, env=env, capture_output=True,
-                          text=True, check=True).stdout
-    m = re.search(r'(\d+) sweeps \(', text)
-    if not m:
-        raise RuntimeError('%s: no sweep count in the benchmark output:\n%s' % (path, text))
-    return int(m.group(1))
+    cmd = [bench, path, '--repeat', '1', '--k1', '1', '--k2', '2'] + options
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    figures = parse(proc.stdout)
+    if proc.returncode != 0 or 'sweeps' not in figures:
+        raise RuntimeError('%s failed or gave no sweep count:\n%s' % (' '.join(cmd), proc.stdout[-2000:] + proc.stderr[-2000:]))
+    return int(figures['sweeps'])
 
 
 def main():
@@ -51,23 +50,19 @@ def main():
     missing = [s for s in args.steps if not os.path.exists(s)]
     if missing:
         sys.exit('no such step file: %s' % ', '.join(missing))
-    prov, rows = provenance(), []
+    rows = []
     for path in args.steps:
         row = dict(step=os.path.basename(path))
         for name, opts in variants:
             row[name] = sweeps(args.bench, path, opts, args.threads)
         print(', '.join('%s %s' % kv for kv in row.items()), flush=True)
-        rows.append(dict(row, threads=args.threads, **prov))
+        rows.append(dict(row, threads=args.threads))
     ref = variants[0][0]
     total = {name: sum(r[name] for r in rows) for name, _ in variants}
     print('total sweeps: ' + ', '.join('%s %d (%.3f)' % (n, t, t / total[ref]) for n, t in total.items()))
     print('steps with fewer sweeps than %s: ' % ref + ', '.join(
         '%s %d of %d' % (n, sum(r[n] < r[ref] for r in rows), len(rows)) for n, _ in variants[1:]))
-    os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
-    with open(args.csv, 'w', newline='') as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(args.csv, rows)       # with the machine, commit and date
 
 
 if __name__ == '__main__':

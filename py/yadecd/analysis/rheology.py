@@ -6,6 +6,7 @@ Pure numpy and matplotlib (no YADE).
 Published values drawn beside the runs (:data:`LITERATURE`) are labelled with their source and
 their system; they are not the same system as ours unless said.
 """
+import csv
 import glob
 import json
 import math
@@ -85,7 +86,6 @@ def load_records(directory):
 def read_samples(path):
     """A run's samples file (``<stem>.csv``, the columns of
     :data:`yadecd.compare.shear.SAMPLE_FIELDS`) as a list of dicts of floats."""
-    import csv
     with open(path, newline='') as f:
         return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
