@@ -77,6 +77,9 @@ void ContactDynamicsIntegrator::postLoad(ContactDynamicsIntegrator&)
 	if (!(relaxation > 0 && relaxation < 2)) bad("relaxation=" + std::to_string(relaxation) + ": must lie in (0, 2).");
 	syncSchedule();
 	if (slabs < 1 || slabs > 64) bad("slabs=" + std::to_string(slabs) + ": must lie in 1..64.");
+	if (slabsAcross < 1 || slabsAcross > 64) bad("slabsAcross=" + std::to_string(slabsAcross) + ": must lie in 1..64.");
+	if (slabs * slabsAcross > 64)
+		bad("slabs=" + std::to_string(slabs) + " with slabsAcross=" + std::to_string(slabsAcross) + ": the parts (slabs × slabsAcross) must be at most 64.");
 	if (parallelMinContacts < 0) bad("parallelMinContacts=" + std::to_string(parallelMinContacts) + ": must be 0 (always use the threads) or more.");
 	if (maxProjectionIter < 1) bad("maxProjectionIter=" + std::to_string(maxProjectionIter) + ": must be at least 1.");
 }
@@ -210,6 +213,7 @@ cd::Params ContactDynamicsIntegrator::params() const
 	p.relaxation        = relaxation;
 	p.schedule          = sweepOrder;
 	p.slabs             = slabs;
+	p.slabsAcross       = slabsAcross;
 	p.momentum          = momentum;
 	p.sphereFastPath      = sphereFastPath;
 	p.recordResidual    = recordResidual;

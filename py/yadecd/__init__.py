@@ -18,7 +18,8 @@ __all__ = ['engines', 'integrator', 'solver_options', 'SOLVER_OPTIONS']
 #: The engine's solver options: the attributes of :class:`ContactDynamicsIntegrator` that say how
 #: each step is solved. The C++ class is the one definition of each (name, default, validation,
 #: docstring); :func:`solver_options` reads their defaults from it.
-SOLVER_OPTIONS = ('tolerance', 'maxIter', 'checkEvery', 'relaxation', 'momentum', 'schedule', 'slabs', 'sphereFastPath',
+SOLVER_OPTIONS = ('tolerance', 'maxIter', 'checkEvery', 'relaxation', 'momentum', 'schedule', 'slabs', 'slabsAcross',
+                  'sphereFastPath',
                   'alertRatio', 'alertSpeedFactor', 'positionTolerance', 'maxProjectionIter', 'correctionMomentum',
                   'parallelMinContacts', 'warnUnconverged', 'recordResidual')
 

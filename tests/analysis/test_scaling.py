@@ -10,7 +10,9 @@ from yadecd.analysis import scaling  # noqa: E402
 class TestScaling(unittest.TestCase):
     def test_parse(self):
         self.assertEqual(scaling.parse_stages('10 20|5||0'), [[10, 20], [5], [], [0]])
-        for bad in ('', '1 x|2', '3|-1'):
+        # a serial stage (cd_core_bench's 's:') is one thread's work
+        self.assertEqual(scaling.parse_stages('10 20|s:5 7 9|s:'), [[10, 20], [21], []])
+        for bad in ('', '1 x|2', '3|-1', 's:1 -2'):
             with self.assertRaises(ValueError):
                 scaling.parse_stages(bad)
 
@@ -28,11 +30,14 @@ class TestScaling(unittest.TestCase):
         self.assertEqual(scaling.critical_path([[10, 10, 50]], 2), 50)
         with self.assertRaises(ValueError):
             scaling.critical_path(st, 0)
+        # a serial stage's ranges stay on one thread at any core count
+        self.assertEqual(scaling.critical_path(scaling.parse_stages('100 100|s:30 10 7'), 64), 100 + 47)
 
     def test_solve_ms(self):
         st = [[1000, 1000], [500]]
-        # 10 sweeps of (1000 + 500) updates at 40 ns = 0.6 ms, plus 2 stages x 5 us x 10 sweeps on two cores
-        self.assertAlmostEqual(scaling.solve_ms(st, 2, 10, 40.0, barrier_us=5.0), 0.6 + 0.1)
+        # 10 sweeps of (1000 + 500) updates at 40 ns = 0.6 ms, plus one parallel stage x 5 us x 10
+        # sweeps on two cores (the one-range stage runs on the calling thread: no meeting)
+        self.assertAlmostEqual(scaling.solve_ms(st, 2, 10, 40.0, barrier_us=5.0), 0.6 + 0.05)
         self.assertAlmostEqual(scaling.solve_ms(st, 1, 10, 40.0, barrier_us=5.0), 1.0)   # no meeting on one core
 
 

@@ -190,7 +190,7 @@ sys.path.insert(0, %r)
 from yade import O
 from yadecd import scenes
 import yadecd
-scenes.fcc_block(1400, schedule=%r, maxIter=40, warnUnconverged=False, parallelMinContacts=0)
+scenes.fcc_block(1400, schedule=%r, maxIter=40, warnUnconverged=False, parallelMinContacts=0, **%r)
 O.run(3, True)
 cd = yadecd.integrator()
 v = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
@@ -198,15 +198,16 @@ print('RESULT', O.numThreads, cd.nColours, cd.nInterface, cd.nContacts, hashlib.
 """
 
 
-def run_with_threads(schedule, threads):
-    """PARALLEL_RUN in a fresh YADE with the given thread count (yade -jN): the fields of its
-    RESULT line (threads, colours, interface contacts, contacts, velocity hash)."""
+def run_with_threads(schedule, threads, **options):
+    """PARALLEL_RUN in a fresh YADE with the given thread count (yade -jN) and integrator
+    options: the fields of its RESULT line (threads, colours, interface contacts, contacts,
+    velocity hash)."""
     import subprocess
     import tempfile
     import yade.config
     exe = os.path.join(yade.config.prefix, 'bin', 'yade' + yade.config.suffix)
     with tempfile.NamedTemporaryFile('w', suffix='.py', delete=False) as f:
-        f.write(PARALLEL_RUN % (os.path.join(REPO, 'py'), schedule))
+        f.write(PARALLEL_RUN % (os.path.join(REPO, 'py'), schedule, options))
     try:
         res = subprocess.run([exe, '-j%d' % threads, '-n', '-x', f.name], capture_output=True, text=True, timeout=300)
     finally:
@@ -215,6 +216,33 @@ def run_with_threads(schedule, threads):
     if not line:
         raise AssertionError(res.stdout[-2000:] + res.stderr[-2000:])
     return line[0].split()[1:]
+
+
+def separate_columns(n_columns, height, rows=1, **opts):
+    """Separate columns of spheres on a wall, ``n_columns`` along x in each of ``rows`` rows
+    along y: no body touches two of them. Returns a sphere's mass."""
+    O.reset()
+    r, mat = 0.01, scenes.material(0.3)
+    O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
+    for row in range(rows):
+        for c in range(n_columns):
+            for k in range(height):
+                O.bodies.append(utils.sphere((3 * r * c, 3 * r * row, r + 2 * r * k), r, material=mat))
+    O.engines = yadecd.engines(gravity=(0, 0, -9.81), **opts)
+    O.dt = 1e-4
+    return O.bodies[1].state.mass
+
+
+def step_and_check_columns_exact(test, mass, n_columns, height):
+    """One tight step of separate_columns' scene: converged, no interface (every column inside
+    one part), and every column's floor force its weight to 1e-9."""
+    O.step()
+    cd = yadecd.integrator()
+    test.assertTrue(cd.converged)
+    test.assertEqual(cd.nInterface, 0)
+    for c in range(n_columns):
+        f = O.interactions[0, 1 + height * c].phys.normalForce[2]
+        test.assertAlmostEqual(f / (height * mass * 9.81), 1.0, delta=1e-9)
 
 
 class TestColouredSweep(unittest.TestCase):
@@ -246,30 +274,11 @@ class TestColouredSweep(unittest.TestCase):
 class TestSlabSweep(unittest.TestCase):
     """schedule='slabs': slabs swept upwards in parallel, then the interface between them."""
 
-    def columns(self, n_columns, height, **opts):
-        """Separate columns of spheres on a wall, in a row along x: no body touches two of them.
-        Returns a sphere's mass."""
-        O.reset()
-        r, mat = 0.01, scenes.material(0.3)
-        O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))
-        for c in range(n_columns):
-            for k in range(height):
-                O.bodies.append(utils.sphere((3 * r * c, 0, r + 2 * r * k), r, material=mat))
-        O.engines = yadecd.engines(gravity=(0, 0, -9.81), **opts)
-        O.dt = 1e-4
-        return O.bodies[1].state.mass
-
     def test_separate_columns_need_no_interface_and_are_exact(self):
         """Four columns of 10, two slabs: each slab holds two whole columns (no interface), and
         every floor force is the column's weight to 1e-9."""
-        m = self.columns(4, 10, schedule='slabs', slabs=2, tolerance=1e-12, maxIter=200000)
-        O.step()
-        cd = yadecd.integrator()
-        self.assertTrue(cd.converged)
-        self.assertEqual(cd.nInterface, 0)
-        for c in range(4):
-            f = O.interactions[0, 1 + 10 * c].phys.normalForce[2]
-            self.assertAlmostEqual(f / (10 * m * 9.81), 1.0, delta=1e-9)
+        m = separate_columns(4, 10, schedule='slabs', slabs=2, tolerance=1e-12, maxIter=200000)
+        step_and_check_columns_exact(self, m, 4, 10)
 
     def test_same_step_as_height_order(self):
         """From the same state of a loose packing (sticking, sliding and open contacts), one step
@@ -302,6 +311,64 @@ class TestSlabSweep(unittest.TestCase):
             self.assertGreater(int(interface), 0)
             out[j] = digest
         self.assertEqual(out[1], out[2])
+
+
+class TestColumnSweep(unittest.TestCase):
+    """schedule='slabs' with slabsAcross > 1: slabs cut into columns, the parts swept in
+    parallel, then the interface groups in colours that share no part."""
+
+    def test_separate_columns_in_a_square_need_no_interface_and_are_exact(self):
+        """Four columns of 10 on a 2 x 2 square, two slabs of two columns each: every column is
+        a part of its own (no interface), and every floor force is the column's weight to 1e-9."""
+        m = separate_columns(2, 10, rows=2, schedule='slabs', slabs=2, slabsAcross=2, tolerance=1e-12, maxIter=200000)
+        step_and_check_columns_exact(self, m, 4, 10)
+
+    def test_same_step_as_height_order(self):
+        """From the same state of a loose packing, one step solved tightly in 2 x 2 columns (with
+        an interface) and in plain height order gives the same velocities."""
+        scenes.random_loose_packing(n=40, tolerance=1e-12, maxIter=100000)
+        O.run(250, True)
+        O.saveTmp('columns')
+        out = {}
+        for across in (0, 2):
+            O.loadTmp('columns')
+            cd = yadecd.integrator()
+            if across:
+                cd.schedule, cd.slabs, cd.slabsAcross = 'slabs', 2, across
+            else:
+                cd.schedule = 'height'
+            O.step()
+            self.assertTrue(cd.converged)
+            if across:
+                self.assertGreater(cd.nInterface, 0)
+                self.assertLess(cd.nInterface, cd.nContacts)
+            out[across] = np.array([list(b.state.vel) + list(b.state.angVel) for b in O.bodies])
+        self.assertLess(np.abs(out[2] - out[0]).max(), 1e-9 * max(np.abs(out[0]).max(), 1e-3))
+
+    def test_bit_identical_for_any_thread_count(self):
+        """The same run in 2 x 2 columns with 1 and 2 threads (yade -j1, -j2; parts large enough
+        to be swept in parallel) ends with bit-identical velocities, different from the slabs'
+        (another order)."""
+        out = {}
+        for j in (1, 2):
+            threads, _, interface, contacts, digest = run_with_threads('slabs', j, slabs=2, slabsAcross=2)
+            self.assertEqual(int(threads), j)
+            self.assertGreater(int(contacts) - int(interface), 1024)  # parts big enough to go parallel
+            self.assertGreater(int(interface), 0)
+            out[j] = digest
+        self.assertEqual(out[1], out[2])
+        self.assertNotEqual(out[1], run_with_threads('slabs', 1)[4])
+
+    def test_bad_parts_are_refused_by_name(self):
+        for bad in (0, 65, -1):
+            with self.assertRaisesRegex(ValueError, 'slabsAcross=%d: must lie in 1..64' % bad):
+                CDI(slabsAcross=bad)
+        cd = CDI(slabs=16)
+        with self.assertRaisesRegex(ValueError, r'slabs=16 with slabsAcross=8: the parts \(slabs × slabsAcross\) must be at most 64'):
+            cd.slabsAcross = 8
+        cd.slabs = 8
+        cd.slabsAcross = 8   # 64 parts: allowed
+        self.assertEqual((cd.slabs, cd.slabsAcross), (8, 8))
 
 
 class TestAgainstSiconos(unittest.TestCase):

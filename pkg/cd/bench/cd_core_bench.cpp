@@ -7,7 +7,7 @@
 //     set-up, warm start and residual checks cancel (as scripts/bench/solver_bench.py does
 //     inside YADE).
 //
-//   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1]
+//   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--momentum 0|1] [--sphere 0|1]
 //                            [--tolerance T] [--time-sweeps 0|1] [--parallel-min-contacts N]
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
 //                            [--history OUT.csv] [--worklist 0|1] [--worklist-threshold ETA]
@@ -49,8 +49,8 @@ double seconds()
 
 struct StepTimes {
 	double assemble, solve, correct;
-	int    sweeps, correctionSweeps, interface, fullSweeps, serial;
-	std::string stages; // the schedule: per stage, its ranges' contact counts ('|' between stages, ' ' between ranges)
+	int    sweeps, correctionSweeps, interface, fullSweeps, wide;
+	std::string stages; // the schedule: per stage, its ranges' contact counts ('|' between stages, ' ' between ranges, 's:' before a serial stage's)
 	long   contacts, updates;
 	double residual;
 };
@@ -113,10 +113,12 @@ StepTimes runStep(const cd::SavedProblem& pb, const cd::Params& p)
 	double                    t3 = seconds();
 	t.correctionSweeps           = cs.iterations;
 	t.interface                  = st.nInterface;
-	t.serial                     = st.nSerial;
+	t.wide                       = st.nWide;
 	const cd::Schedule& o        = s.schedule();
-	for (const auto& stage : o.stages) {
-		if (!t.stages.empty()) t.stages += '|';
+	for (size_t j = 0; j < o.stages.size(); ++j) {
+		const cd::Schedule::Stage& stage = o.stages[j];
+		if (j) t.stages += '|';
+		if (!stage.parallel && stage.end - stage.begin > 1) t.stages += "s:"; // ranges swept one after the other by one thread
 		for (int i = stage.begin; i < stage.end; ++i)
 			t.stages += (i > stage.begin ? " " : "") + std::to_string(o.bounds[i + 1] - o.bounds[i]);
 	}
@@ -146,7 +148,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N]\n", what);
 	std::exit(2);
 }
 
@@ -159,7 +161,7 @@ int main(int argc, char** argv)
 	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1, stallWindow = -1;
 	double      workThreshold = -1;
 	int         k1 = 20, k2 = 120, repeat = 3;
-	int         schedule = -1, slabs = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
+	int         schedule = -1, slabs = -1, across = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
 	double      tolerance = -1;
 	long        parallelMin = -1;
 	for (int i = 2; i < argc; ++i) {
@@ -168,6 +170,7 @@ int main(int argc, char** argv)
 		const std::string v = argv[++i];
 		if (a == "--schedule") schedule = std::stoi(v);
 		else if (a == "--slabs") slabs = std::stoi(v);
+		else if (a == "--slabs-across") across = std::stoi(v);
 		else if (a == "--momentum") momentum = std::stoi(v);
 		else if (a == "--sphere") sphere = std::stoi(v);
 		else if (a == "--tolerance") tolerance = std::stod(v);
@@ -194,6 +197,7 @@ int main(int argc, char** argv)
 		cd::Params             p  = pb.params;
 		if (schedule >= 0) p.schedule = schedule;
 		if (slabs >= 0) p.slabs = slabs;
+		if (across >= 0) p.slabsAcross = across;
 		if (momentum >= 0) p.momentum = momentum;
 		if (sphere >= 0) p.sphereFastPath = sphere;
 		if (tolerance > 0) p.tolerance = tolerance;
@@ -216,12 +220,12 @@ int main(int argc, char** argv)
 			const double t1 = bestForcedSolve(pb, p, k1, repeat), t2 = bestForcedSolve(pb, p, k2, repeat);
 			ns              = (t2 - t1) / (k2 - k1) / double(step.contacts) * 1e9;
 		}
-		std::printf("%s: %zu bodies, %ld contacts; schedule %d, slabs %d, momentum %d, sphere kernel %d, %d thread(s)\n", file.c_str(),
-		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, int(p.momentum), int(p.sphereFastPath), threads);
+		std::printf("%s: %zu bodies, %ld contacts; schedule %d, slabs %d x %d, momentum %d, sphere kernel %d, %d thread(s)\n", file.c_str(),
+		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, p.slabsAcross, int(p.momentum), int(p.sphereFastPath), threads);
 		std::printf("  step at the file's tolerance %g: %d sweeps (%d full; %ld contact updates, %.1f sweeps' worth; residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
 		            double(p.tolerance), step.sweeps, step.fullSweeps, step.updates, double(step.updates) / double(std::max(step.contacts, 1L)), step.residual, step.correctionSweeps,
 		            step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
-		std::printf("  schedule: %s (%d interface contacts, %d of them serial)\n", step.stages.c_str(), step.interface, step.serial);
+		std::printf("  schedule: %s (%d interface contacts, %d of them touching three parts or more)\n", step.stages.c_str(), step.interface, step.wide);
 		if (p.worklist) std::printf("  worklist: threshold %g x tolerance x |q| / sqrt(contacts), %d full sweeps first\n", double(p.worklistThreshold), p.worklistFullSweeps);
 		if (timeSweeps) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
 		if (!history.empty()) {
@@ -242,12 +246,12 @@ int main(int argc, char** argv)
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();
 			std::ofstream out(csv, std::ios::app);
-			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,serial,stages\n";
+			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,wide,stages,slabs_across\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
 			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
 			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << ',' << int(p.worklist) << ',' << double(p.worklistThreshold) << ','
-			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.serial << ',' << step.stages << '\n';
+			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.wide << ',' << step.stages << ',' << p.slabsAcross << '\n';
 		}
 	} catch (const std::exception& e) {
 		std::fprintf(stderr, "cd_core_bench: %s\n", e.what());

@@ -127,6 +127,7 @@ namespace cd {
 		Real     relaxation = 1;       // over-relaxation ω (1: none; a separate kernel instance)
 		int      schedule = 1;         // Schedule::Kind
 		int      slabs = 2;
+		int      slabsAcross = 1;      // columns per slab (Schedule::Slabs; 1: slabs only)
 		bool     momentum = true;
 		bool     sphereFastPath = true;
 		bool     recordResidual = false;
@@ -153,7 +154,7 @@ namespace cd {
 		Real              residual = 0;
 		bool              converged = true;
 		int               nSticking = 0, nSliding = 0, nStatusChanges = 0;
-		int               nInterface = 0, nColours = 0, nSerial = 0;
+		int               nInterface = 0, nColours = 0, nWide = 0;
 		long              contactUpdates = 0;  // local updates made (sweeps × contacts without the worklist)
 		int               fullSweeps = 0;      // sweeps over every contact (all of them without the worklist)
 		std::vector<Real> residualHistory;

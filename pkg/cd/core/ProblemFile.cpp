@@ -81,7 +81,9 @@ namespace cd {
 		put(o, p.up);
 		o << ' ' << p.tolerance << ' ' << p.maxIter << ' ' << p.checkEvery << ' ' << p.relaxation << ' ' << p.schedule << ' ' << p.slabs << ' '
 		  << int(p.momentum) << ' ' << int(p.sphereFastPath) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter
-		  << (p.correctionMomentum ? " 1" : "") << '\n'; // an optional trailing flag: absent means 0
+		  << (p.correctionMomentum || p.slabsAcross != 1 ? (p.correctionMomentum ? " 1" : " 0") : ""); // optional trailing fields: absent means 0
+		if (p.slabsAcross != 1) o << ' ' << p.slabsAcross;                                                   // ... and 1
+		o << '\n';
 		o << "bodies " << solver.bodies.size() << '\n';
 		for (size_t id = 0; id < solver.bodies.size(); ++id) {
 			const Body&       b = solver.bodies[id];
@@ -145,6 +147,8 @@ namespace cd {
 			p.maxProjectionIter = l.get<int>();
 			// files written before the correction had momentum end here: they were solved without it
 			p.correctionMomentum = l.more() ? l.get<int>() != 0 : false;
+			// ... and before the slabs had columns: slabs only
+			p.slabsAcross = l.more() ? l.get<int>() : 1;
 			l.end();
 		}
 		LineReader hb = next("the body count");

@@ -10,14 +10,14 @@
 namespace yade {
 namespace cd {
 
-	void Schedule::build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up)
+	void Schedule::build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, const Vector3r& up)
 	{
-		nColours = nInterface = nSerial = 0;
+		nColours = nInterface = nWide = 0;
 		sumPerContact         = false;
 		switch (kind) {
 			case Height: byHeight(long(set.size())); break;
 			case Colours: colours(set, records); break;
-			case Slabs: slabs(set, records, ns, up); break;
+			case Slabs: slabs(set, records, ns, across, up); break;
 			default: throw std::invalid_argument("cd::Schedule: unknown kind " + std::to_string(kind) + " (1 height, 4 colours, 5 slabs).");
 		}
 	}
@@ -80,74 +80,182 @@ namespace cd {
 		sumPerContact = true;
 	}
 
-	// Slabs: the contact points cut, across the wider horizontal extent, into ns slabs of equal
-	// contact counts. A contact is inner when each of its dynamic bodies has all its contacts in
-	// the contact's slab; inner contacts of different slabs then share no body and their slabs
-	// can be swept at the same time. The rest (contacts of bodies that straddle a cut) form the
-	// interface, swept after the slabs: the contacts whose bodies have all their contacts in the
-	// two slabs beside one cut belong to that cut, and cuts two apart share no body, so the even
-	// cuts are swept at the same time, then the odd ones; what spans more than two slabs (bodies
-	// wider than a slab) is swept last by one thread. Height order is kept within every group.
-	// With two slabs there is one cut and nothing spans more: the order is the same as with a
-	// single serial interface.
-	void Schedule::slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up)
-	{
-		if (ns < 1 || ns > 64) throw std::invalid_argument("cd::Schedule: slabs=" + std::to_string(ns) + " must lie in 1..64.");
-		const long nc    = long(set.size());
-		auto       point = [&set](long k) -> const Vector3r& { return set.info[k].point; };
-		int        axis  = 0;
-		Real       width = -1;
-		for (int a = 0; a < 3; ++a) {
-			if (math::abs(up[a]) > 0.5) continue; // along gravity: not a horizontal axis
-			Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
-			for (long k = 0; k < nc; ++k)
-				lo = math::min(lo, point(k)[a]), hi = math::max(hi, point(k)[a]);
-			if (hi - lo > width) width = hi - lo, axis = a;
-		}
-		std::vector<Real> x(nc);
-		for (long k = 0; k < nc; ++k)
-			x[k] = point(k)[axis];
-		std::vector<Real> sorted(x);
-		std::sort(sorted.begin(), sorted.end());
-		std::vector<Real> cut(ns - 1);
-		for (int s = 1; s < ns; ++s)
-			cut[s - 1] = sorted[size_t(s) * nc / ns];
-		std::vector<int>      group(nc);
-		std::vector<uint64_t> touched(records.size(), 0);
-		for (long k = 0; k < nc; ++k) {
-			group[k]     = int(std::upper_bound(cut.begin(), cut.end(), x[k]) - cut.begin());
-			const int b1 = set.info[k].b1, b2 = set.info[k].b2;
-			if (records[b1].dynamic) touched[b1] |= uint64_t(1) << group[k];
-			if (records[b2].dynamic) touched[b2] |= uint64_t(1) << group[k];
-		}
-		// groups: slabs 0..ns−1 (inner), then the cuts, even ones first (cut c lies between
-		// slabs c and c+1), then the serial rest: consecutive, so that each stage's ranges are
-		const int         nGroups = 2 * ns, nCuts = ns - 1, nEven = (nCuts + 1) / 2;
-		auto              cutGroup = [&](int c) { return ns + (c % 2 == 0 ? c / 2 : nEven + c / 2); };
-		std::vector<long> count(nGroups, 0);
-		for (long k = 0; k < nc; ++k) {
-			const uint64_t own = uint64_t(1) << group[k];
-			const int      b1 = set.info[k].b1, b2 = set.info[k].b2;
-			const uint64_t span = own | (records[b1].dynamic ? touched[b1] : 0) | (records[b2].dynamic ? touched[b2] : 0);
-			if (span != own) {
-				const int lo = __builtin_ctzll(span);
-				group[k]     = (span >> lo) == 3 ? cutGroup(lo) : nGroups - 1; // exactly slabs lo and lo+1: that cut's
+	namespace {
+		// The part of every contact (Schedule::slabs): its slab across the wider horizontal
+		// extent (ns slabs of equal contact counts), then (across > 1) its column along the other
+		// horizontal axis within the slab (across columns of equal counts); numbered slab by slab.
+		std::vector<int> cutIntoParts(const ContactSet& set, int ns, int across, const Vector3r& up)
+		{
+			const long       nc = long(set.size());
+			std::vector<int> part(nc);
+			auto             point      = [&set](long k) -> const Vector3r& { return set.info[k].point; };
+			auto             horizontal = [&up](int a) { return math::abs(up[a]) <= 0.5; }; // not along gravity
+			Real             extent[3];
+			for (int a = 0; a < 3; ++a) {
+				Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
+				for (long k = 0; k < nc; ++k)
+					lo = math::min(lo, point(k)[a]), hi = math::max(hi, point(k)[a]);
+				extent[a] = nc ? hi - lo : 0;
 			}
-			++count[group[k]];
+			// the slabs' axis: the widest horizontal one; the columns': the wider of the other
+			// horizontal axes, else of the other axes
+			int  axis = 0, other = -1;
+			Real width = -1;
+			for (int a = 0; a < 3; ++a)
+				if (horizontal(a) && extent[a] > width) width = extent[a], axis = a;
+			for (int a = 0; a < 3; ++a)
+				if (a != axis && (other < 0 || horizontal(a) > horizontal(other) || (horizontal(a) == horizontal(other) && extent[a] > extent[other])))
+					other = a;
+			{
+				std::vector<Real> x(nc);
+				for (long k = 0; k < nc; ++k)
+					x[k] = point(k)[axis];
+				std::vector<Real> sorted(x);
+				std::sort(sorted.begin(), sorted.end());
+				std::vector<Real> cut(ns - 1);
+				for (int s = 1; s < ns; ++s)
+					cut[s - 1] = sorted[size_t(s) * nc / ns];
+				for (long k = 0; k < nc; ++k)
+					part[k] = int(std::upper_bound(cut.begin(), cut.end(), x[k]) - cut.begin()) * across;
+			}
+			if (across > 1) {
+				std::vector<std::vector<Real>> y(ns);
+				for (long k = 0; k < nc; ++k)
+					y[part[k] / across].push_back(point(k)[other]);
+				std::vector<std::vector<Real>> cut(ns);
+				for (int s = 0; s < ns; ++s) {
+					std::sort(y[s].begin(), y[s].end());
+					for (int c = 1; c < across && !y[s].empty(); ++c)
+						cut[s].push_back(y[s][size_t(c) * y[s].size() / across]);
+				}
+				for (long k = 0; k < nc; ++k) {
+					const std::vector<Real>& c = cut[part[k] / across];
+					part[k] += int(std::upper_bound(c.begin(), c.end(), point(k)[other]) - c.begin());
+				}
+			}
+			return part;
 		}
+	} // namespace
+
+	// Slabs: the contact points cut, across the wider horizontal extent, into ns slabs of equal
+	// contact counts, and (across > 1) every slab cut along the other horizontal axis into
+	// `across` columns of equal contact counts (a k-d split: the columns of neighbouring slabs
+	// need not line up). Parts are numbered slab by slab. A contact is inner when each of its
+	// dynamic bodies has all its contacts in the contact's part; inner contacts of different
+	// parts then share no body and their parts can be swept at the same time. The rest (contacts
+	// of bodies that straddle a cut) form the interface, swept after the parts, grouped by the
+	// set of parts their bodies touch (its key): two contacts that share a body have keys that
+	// share that body's parts, so groups with disjoint keys share no body. The groups are
+	// coloured greedily, first those of two parts, then those of three parts or more (bodies at a
+	// corner, or wider than a part), each class by its lowest part, then by key, so that the
+	// groups of one colour have disjoint keys: one parallel stage per colour, and the colours too
+	// small for threads (one group, or little beyond the largest) after them as one serial stage.
+	// Height order is kept within every group. With slabs only (across = 1) the groups of two
+	// parts are the cuts, and their colours the even cuts and the odd ones; with two slabs there
+	// is one cut and nothing spans more: the order is the same as with a single serial interface.
+	void Schedule::slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, const Vector3r& up)
+	{
+		if (ns < 1 || across < 1 || ns * across > 64)
+			throw std::invalid_argument("cd::Schedule: slabs=" + std::to_string(ns) + ", slabsAcross=" + std::to_string(across)
+			                            + ": both must be at least 1 and their product (the parts) at most 64.");
+		const long             nc     = long(set.size());
+		const int              nParts = ns * across;
+		const std::vector<int> part   = cutIntoParts(set, ns, across, up);
+		std::vector<uint64_t> touched(records.size(), 0), key(nc);
+		for (long k = 0; k < nc; ++k) {
+			const int b1 = set.info[k].b1, b2 = set.info[k].b2;
+			if (records[b1].dynamic) touched[b1] |= uint64_t(1) << part[k];
+			if (records[b2].dynamic) touched[b2] |= uint64_t(1) << part[k];
+		}
+		for (long k = 0; k < nc; ++k) {
+			const int b1 = set.info[k].b1, b2 = set.info[k].b2;
+			key[k]       = (uint64_t(1) << part[k]) | (records[b1].dynamic ? touched[b1] : 0) | (records[b2].dynamic ? touched[b2] : 0);
+		}
+		// the interface groups: the distinct keys of more than one part, those of two parts first,
+		// each class by its lowest part, then by key
+		auto before = [](uint64_t a, uint64_t b) {
+			const bool wa = __builtin_popcountll(a) > 2, wb = __builtin_popcountll(b) > 2;
+			if (wa != wb) return wb;
+			const int la = __builtin_ctzll(a), lb = __builtin_ctzll(b);
+			return la < lb || (la == lb && a < b);
+		};
+		std::vector<uint64_t> keys;
+		for (long k = 0; k < nc; ++k)
+			if (key[k] != uint64_t(1) << part[k]) keys.push_back(key[k]);
+		std::sort(keys.begin(), keys.end(), before);
+		keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+		// greedy colouring, each group (the pairs first, then the wide ones) into the first colour
+		// none of whose groups shares a part with it
+		std::vector<uint64_t> colourParts;
+		std::vector<int>      colourOf(keys.size());
+		for (size_t i = 0; i < keys.size(); ++i) {
+			size_t c = 0;
+			while (c < colourParts.size() && (colourParts[c] & keys[i]))
+				++c;
+			if (c == colourParts.size()) colourParts.push_back(0);
+			colourParts[c] |= keys[i];
+			colourOf[i] = int(c);
+		}
+		// contacts per key and per colour. The parts' stage runs in parallel when it has several
+		// ranges and enough contacts to pay for a parallel region; a colour does when the
+		// contacts of its ranges beyond the largest, which threads could take off the critical
+		// path, pay for the meeting of the threads (≈ 3 µs, some 64 contact updates). The colours
+		// that do not are swept after those that do, in their order, as one serial stage.
+		constexpr long   minParallel = 256, minSpare = 64;
+		const int        nColours = int(colourParts.size()), nGroups = nParts + int(keys.size());
+		std::vector<int> keyOf(nc, -1);
+		std::vector<long> keyCount(keys.size(), 0), colourCount(nColours, 0), colourRanges(nColours, 0), colourLargest(nColours, 0);
+		std::vector<long> partCount(nParts, 0);
+		nWide = 0;
+		for (long k = 0; k < nc; ++k) {
+			if (key[k] == uint64_t(1) << part[k]) {
+				++partCount[part[k]];
+				continue;
+			}
+			keyOf[k] = int(std::lower_bound(keys.begin(), keys.end(), key[k], before) - keys.begin());
+			++keyCount[keyOf[k]];
+			nWide += __builtin_popcountll(key[k]) > 2;
+		}
+		for (size_t i = 0; i < keys.size(); ++i) {
+			const int c = colourOf[i];
+			colourCount[c] += keyCount[i], ++colourRanges[c], colourLargest[c] = std::max(colourLargest[c], keyCount[i]);
+		}
+		auto parallelColour = [&](int c) { return colourRanges[c] > 1 && colourCount[c] - colourLargest[c] >= minSpare; };
+		std::vector<int> colourOrder; // the parallel colours, then the serial ones
+		for (int pass = 0; pass < 2; ++pass)
+			for (int c = 0; c < nColours; ++c)
+				if (parallelColour(c) == (pass == 0)) colourOrder.push_back(c);
+		// groups: the parts (inner), then the interface groups colour by colour in that order (in
+		// key order within a colour): consecutive, so that each stage's ranges are
+		std::vector<int> keyGroup(keys.size()), colourStart(nColours + 1, 0), rank(nColours);
+		for (int r = 0; r < nColours; ++r)
+			rank[colourOrder[r]] = r;
+		colourStart[0] = nParts;
+		for (int r = 0; r < nColours; ++r)
+			colourStart[r + 1] = colourStart[r] + int(colourRanges[colourOrder[r]]);
+		{
+			std::vector<int> next(colourStart.begin(), colourStart.end() - 1);
+			for (size_t i = 0; i < keys.size(); ++i)
+				keyGroup[i] = next[rank[colourOf[i]]]++;
+		}
+		std::vector<long> count(nGroups, 0);
+		for (int g = 0; g < nParts; ++g)
+			count[g] = partCount[g];
+		for (size_t i = 0; i < keys.size(); ++i)
+			count[keyGroup[i]] = keyCount[i];
 		bounds.assign(nGroups + 1, 0);
 		for (int g = 0; g < nGroups; ++g)
 			bounds[g + 1] = bounds[g] + count[g];
 		std::vector<long> next(bounds.begin(), bounds.end() - 1), order(nc);
 		for (long k = 0; k < nc; ++k)
-			order[next[group[k]]++] = k;
+			order[next[keyOf[k] < 0 ? part[k] : keyGroup[keyOf[k]]]++] = k;
 		set.permute(order);
-		nInterface = int(nc - bounds[ns]);
-		nSerial    = int(count[nGroups - 1]);
-		// a stage runs in parallel when it has several ranges and enough contacts to pay for a
-		// parallel region
-		auto stage = [&](int first, int last) { return Stage { first, last, last - first > 1 && bounds[last] - bounds[first] >= 256 }; };
-		stages     = { stage(0, ns), stage(ns, ns + nEven), stage(ns + nEven, ns + nCuts), stage(ns + nCuts, nGroups) };
+		nInterface = int(nc - bounds[nParts]);
+		stages.assign(1, Stage { 0, nParts, nParts > 1 && bounds[nParts] >= minParallel });
+		int r = 0;
+		for (; r < nColours && parallelColour(colourOrder[r]); ++r)
+			stages.push_back(Stage { colourStart[r], colourStart[r + 1], true });
+		if (r < nColours) stages.push_back(Stage { colourStart[r], colourStart[nColours], false }); // the serial colours
 	}
 
 } // namespace cd

@@ -15,11 +15,14 @@
 //                order), one stage per colour, cut into ranges of at most 256 contacts (any cut
 //                gives the same result: contacts of a colour commute, and sums are taken contact
 //                by contact).
-//   Slabs   (5)  vertical slabs of equal contact counts across the wider horizontal extent; the
-//                contacts inside a slab form one range, all slabs one parallel stage, followed by
-//                the interface: the contacts of each cut (bodies touching the two slabs beside it)
-//                one range, the even cuts one parallel stage, then the odd cuts, then what spans
-//                more than two slabs, one serial range.
+//   Slabs   (5)  vertical slabs of equal contact counts across the wider horizontal extent, each
+//                cut (slabsAcross > 1) along the other horizontal axis into columns of equal
+//                contact counts: the parts. The contacts inside a part form one range, all parts one
+//                parallel stage, followed by the interface: its contacts grouped by the parts their
+//                bodies touch; the groups of two parts coloured so that a colour's groups share no
+//                part (with slabs only: the even cuts, then the odd ones), one parallel stage per
+//                colour, the groups touching three parts or more coloured after them into the
+//                same colours where they fit.
 // Retired (measured worse, docs/results.md): 0 by ids, 2 alternating up and down, 3 downwards.
 #pragma once
 
@@ -40,8 +43,8 @@ namespace cd {
 		std::vector<Stage> stages;
 		bool               sumPerContact = false; // sums over a pass are taken contact by contact (Colours), not range by range
 		int                nColours = 0;   // Colours: colours used (65: an overflow group exists)
-		int                nInterface = 0; // Slabs: contacts not inside one slab (swept after the slabs)
-		int                nSerial    = 0; // Slabs: interface contacts spanning more than two slabs (swept by one thread)
+		int                nInterface = 0; // Slabs: contacts not inside one part (swept after the parts)
+		int                nWide      = 0; // Slabs: interface contacts touching three parts or more (coloured after the two-part groups)
 
 		int ranges() const { return int(bounds.size()) - 1; }
 		/*! Run every stage on the calling thread, ranges in their order (the same results: the
@@ -52,8 +55,9 @@ namespace cd {
 				st.parallel = false;
 		}
 
-		/*! Build the schedule of the given kind, permuting the set's contacts into its order. */
-		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, const Vector3r& up);
+		/*! Build the schedule of the given kind, permuting the set's contacts into its order
+		 *  (slabs, across: the parts of Slabs; ignored by the other kinds). */
+		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, int across, const Vector3r& up);
 
 		/*! Call f(range, begin, end) for every range, stage by stage (backwards: stages in reverse
 		 *  order, and f is told to walk its range backwards), the ranges of a parallel stage on
@@ -88,7 +92,7 @@ namespace cd {
 	private:
 		void byHeight(long nc);
 		void colours(ContactSet& set, const std::vector<BodyRecord>& records);
-		void slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, const Vector3r& up);
+		void slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, const Vector3r& up);
 	};
 
 } // namespace cd

@@ -395,14 +395,14 @@ namespace cd {
 		for (size_t k = 0; k < contacts.size(); ++k)
 			applyImpulse(contacts.info[k], contacts.state[k].r); // warm start, in height order
 		if (contacts.size() == 0) {
-			order.build(Schedule::Height, contacts, records, p.slabs, p.up);
+			order.build(Schedule::Height, contacts, records, p.slabs, p.slabsAcross, p.up);
 			return stats;
 		}
 		stats.converged  = false;
 		const Real scale = qNorm > 0 ? qNorm : Real(1);
 		Real       omega = p.relaxation, bestChange = std::numeric_limits<Real>::infinity();
 		int        stalled = 0;
-		order.build(p.schedule, contacts, records, p.slabs, p.up);
+		order.build(p.schedule, contacts, records, p.slabs, p.slabsAcross, p.up);
 		// A sweep opens a parallel region per stage: on small problems two threads gain nothing
 		// and, when another process takes a core, their spinning barriers cost 15x
 		// (docs/performance.md, "Two threads beside another process").
@@ -410,7 +410,7 @@ namespace cd {
 		if (!sweepThreads) order.serial();
 		stats.nColours   = order.nColours;
 		stats.nInterface = order.nInterface;
-		stats.nSerial    = order.nSerial;
+		stats.nWide    = order.nWide;
 		rangeChange.assign(order.ranges(), 0);
 		rangeStatus.assign(order.ranges(), 0);
 		rangeUpdates.assign(order.ranges(), 0);

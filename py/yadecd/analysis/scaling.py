@@ -9,24 +9,31 @@ costs, in contact updates on the critical path,
 
 and the solve ≈ sweeps · C(N) · t_update + sweeps · stages · t_barrier, with t_update the time of
 one contact update measured on one thread (cd_core_bench's ns per contact-sweep) and t_barrier the
-cost of one meeting of the threads. ``cd_core_bench`` reports the schedule as ``stages``: per
-stage its ranges' contact counts, ' ' between ranges and '|' between stages.
+cost of one meeting of the threads (one per parallel stage: a stage of one range, or a serial
+stage, runs on the calling thread without one). ``cd_core_bench`` reports the schedule as
+``stages``: per stage its ranges' contact counts, ' ' between ranges and '|' between stages, and
+``s:`` before the ranges of a stage that runs on one thread (too small for a parallel region).
 """
 
 
 def parse_stages(text):
-    """'a b|c||d' -> [[a, b], [c], [], [d]] (contact counts per range, per stage)."""
+    """'a b|c||d' -> [[a, b], [c], [], [d]] (contact counts per range, per stage); a serial stage
+    's:a b' is one thread's work, [a + b]."""
     if text is None or text.strip() == '':
         raise ValueError('an empty schedule')
     out = []
     for part in text.split('|'):
         part = part.strip()
+        serial = part.startswith('s:')
+        if serial:
+            part = part[2:].strip()
         try:
-            out.append([int(x) for x in part.split()] if part else [])
+            ranges = [int(x) for x in part.split()] if part else []
         except ValueError:
             raise ValueError('schedule %r: range sizes must be integers' % text)
-        if any(x < 0 for x in out[-1]):
+        if any(x < 0 for x in ranges):
             raise ValueError('schedule %r: a negative range size' % text)
+        out.append([sum(ranges)] if serial and ranges else ranges)
     return out
 
 
@@ -52,6 +59,7 @@ def critical_path(stages, cores):
 
 
 def solve_ms(stages, cores, sweeps, ns_per_update, barrier_us=0.0):
-    """Predicted solve time [ms] of a step: sweeps · (critical path · t_update + non-empty stages · t_barrier)."""
-    busy = sum(1 for r in stages if r)
+    """Predicted solve time [ms] of a step: sweeps · (critical path · t_update + parallel stages · t_barrier),
+    a parallel stage being one of several ranges."""
+    busy = sum(1 for r in stages if len(r) > 1)
     return sweeps * (critical_path(stages, cores) * ns_per_update * 1e-6 + busy * barrier_us * 1e-3 * (cores > 1))

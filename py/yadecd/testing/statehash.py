@@ -7,7 +7,7 @@ the container's order carries no physics). ``tests/data/state_hashes.json`` hold
 engine gave before a refactor, for one and two threads (``scripts/state_hashes.py`` writes it);
 ``tests/engine/test_state_hashes.py`` requires the same hashes after it.
 
-The cases cover every sweep schedule (with parallel stages), momentum on and off, the sphere fast path and the general
+The cases cover every sweep schedule (with parallel stages, slabs cut into columns too), momentum on and off, the sphere fast path and the general
 3×3 path, over-relaxation, a sparser residual check, restitution, a hyperstatic block, a mass
 ratio and a fed pile.
 """
@@ -67,6 +67,11 @@ for _order in (1, 4, 5):
     _case('loose300_order%d_corrmom' % _order, lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
           schedule=_SCHEDULE[_order], correctionMomentum=True)
 _case('pile60_corrmom', None, 1500, correctionMomentum=True)
+# slabs cut into columns (a two-dimensional decomposition): the block with four parts, the loose
+# packing with landings with six
+_case('fcc1000_columns', lambda **o: scenes.fcc_block(1000, **o), 5, schedule='slabs', slabs=2, slabsAcross=2)
+_case('loose300_columns', lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
+      schedule='slabs', slabs=2, slabsAcross=3)
 
 
 def state_digest():
