@@ -132,6 +132,22 @@ class TestResume(unittest.TestCase):
         self.assertIn('bit-identical continuation', lines[0])
         self.assertEqual(faults.compare_states(faults.final_state(run_dir), self.ref), '')
 
+    def test_archive_resume_keeps_the_columns(self):
+        """slabs_across (columns: an engine attribute YADE's archive does not hold) is restored
+        from run.json on a resume: the resumed run ends bit for bit where the same run without a
+        stop ends, and that end is not the two slabs' (the columns are another order)."""
+        opts = dict(TINY, slabs=2, slabs_across=2)
+        straight = os.path.join(self.tmp, 'columns_straight')
+        pile.run(straight, **opts, **QUIET)
+        run_dir = os.path.join(self.tmp, 'columns')
+        pile.run(run_dir, stop_time=0.1, **opts, **QUIET)
+        lines = []
+        pile.run(run_dir, resume=True, log=lines.append)
+        self.assertIn('bit-identical continuation', lines[0])
+        self.assertEqual(O.engines[-1].slabsAcross, 2)
+        self.assertEqual(faults.compare_states(faults.final_state(run_dir), faults.final_state(straight)), '')
+        self.assertNotEqual(faults.compare_states(faults.final_state(straight), self.ref), '')
+
     def test_wall_time_adds_up_over_segments(self):
         """A run stopped twice and resumed: run.json's total wall time is the sum of its segments'
         (each checkpoint carries the wall time so far), and progress.csv's wall column never falls back."""
@@ -310,7 +326,7 @@ class TestChecksBeforeWork(unittest.TestCase):
                ('dt', 0.0), ('rate', -1.0), ('tolerance', 2.0), ('max_iter', 0), ('relaxation', 2.0),
                ('sweep_order', 7), ('method', 'FEM'), ('epochs', '1,x'), ('epochs', '0'), ('snap_every', 0.0),
                ('checkpoint_every', -1.0), ('dt', float('nan')), ('seed', 'one'), ('md_damping', 1.0),
-               ('parallel_min_contacts', -1), ('parallel_min_contacts', 2.5)]
+               ('parallel_min_contacts', -1), ('parallel_min_contacts', 2.5), ('slabs', 0), ('slabs_across', 65)]
         for key, value in bad:
             with self.subTest(key=key, value=value):
                 run_dir = os.path.join(self.tmp, 'bad_%s' % key)
@@ -320,6 +336,10 @@ class TestChecksBeforeWork(unittest.TestCase):
                 self.assertFalse(os.path.exists(run_dir), 'a run directory was made before the check')
         with self.assertRaisesRegex(ValueError, 'unknown pile parameters: grains'):
             pile.run(os.path.join(self.tmp, 'x'), grains=3, **QUIET)
+        # each value valid alone, not together: 16 x 8 parts
+        with self.assertRaisesRegex(ValueError, r'slabs=16, slabs_across=8.*must be at most 64'):
+            pile.run(os.path.join(self.tmp, 'parts'), **dict(TINY, slabs=16, slabs_across=8), **QUIET)
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, 'parts')))
 
     def test_existing_run_is_never_overwritten(self):
         run_dir = os.path.join(self.tmp, 'run')

@@ -15,8 +15,8 @@ from .grains import SHAPES
 #: validation (:func:`yadecd.solver_options`); the pile states only where it departs
 #: (:data:`SOLVER_DEPARTURES`).
 SOLVER_OPTIONS = {'tolerance': 'tolerance', 'max_iter': 'maxIter', 'relaxation': 'relaxation', 'momentum': 'momentum',
-                  'correction_momentum': 'correctionMomentum', 'schedule': 'schedule',
-                  'parallel_min_contacts': 'parallelMinContacts'}
+                  'correction_momentum': 'correctionMomentum', 'schedule': 'schedule', 'slabs': 'slabs',
+                  'slabs_across': 'slabsAcross', 'parallel_min_contacts': 'parallelMinContacts'}
 
 #: Where the pile departs from the engine's defaults (why: docs/pile.md, "Solver settings").
 SOLVER_DEPARTURES = dict(
@@ -137,7 +137,8 @@ RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk', 'parallel_min_conta
 
 # what a branch (:func:`branch`) may change besides: how precisely each step is solved, not the
 # pile's physics or protocol (grains, feed, time step, friction)
-BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_momentum')
+# (and the decomposition of the sweep: another order of the same Gauss–Seidel, for another machine)
+BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_momentum', 'slabs', 'slabs_across')
 
 
 def epoch_list(epochs):
@@ -201,6 +202,10 @@ def check_params(p):
             ContactDynamicsIntegrator(**{attr: p[key]})
         except Exception as e:   # the engine's own message names the attribute and the reason
             raise ValueError('pile parameter %s=%r: %s' % (key, p[key], e)) from None
+    try:                         # options that are checked together (slabs × slabs_across)
+        ContactDynamicsIntegrator(**engine_options(p))
+    except Exception as e:
+        raise ValueError('pile parameters %s: %s' % (', '.join('%s=%r' % (k, p[k]) for k in SOLVER_OPTIONS), e)) from None
 
 
 def disk_need(p):

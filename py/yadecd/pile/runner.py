@@ -200,6 +200,7 @@ class PileRun:
             # attributes not saved with the scene come from the run's parameters
             O.engines[-1].correctionMomentum = bool(self.p.get('correction_momentum', False))
             O.engines[-1].parallelMinContacts = int(self.p['parallel_min_contacts'])
+            O.engines[-1].slabsAcross = int(self.p['slabs_across'])
             self.clock.t0, self.clock.i0 = meta['time_offset'], meta['iter_offset']
             self.resumed_from = 'checkpoint %d, YADE archive: bit-identical continuation' % seq
         else:
