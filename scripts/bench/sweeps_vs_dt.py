@@ -1,7 +1,7 @@
 """Sweeps per step against the time step, with and without momentum, from one pile state.
 
     scripts/yade -j1 -n -x scripts/bench/sweeps_vs_dt.py SNAPSHOT.npz [--dt 2e-4,1e-3] [--momentum 1,0]
-                  [--warmup-time 0.01] [--sim-time 0.03] [--csv OUT.csv]
+                  [--warmup-time 0.01] [--sim-time 0.03] [--tolerance T] [--csv OUT.csv]
 
 For every (h, momentum) pair the pile is rebuilt from the snapshot (yadecd.pile.scene_from_snapshot,
 the run's parameters but h), fed by the pile protocol (200 grains per second, the same grains in
@@ -33,6 +33,7 @@ ap.add_argument('--dt', default='2e-4,1e-3', help='time steps [s], comma-separat
 ap.add_argument('--momentum', default='1,0', help='momentum settings (1, 0), comma-separated')
 ap.add_argument('--warmup-time', type=float, default=0.01, help='simulated time before counting [s]')
 ap.add_argument('--sim-time', type=float, default=0.03, help='simulated time counted [s]')
+ap.add_argument('--tolerance', type=float, default=None, help="the solver's tolerance (default: the run's)")
 ap.add_argument('--csv', default=None)
 a = ap.parse_args(sys.argv[1:])
 if not os.path.exists(a.snapshot):
@@ -44,6 +45,8 @@ except ValueError as e:
     ap.error('--dt and --momentum take comma-separated numbers (%s)' % e)
 if not dts or min(dts) <= 0 or not moms or not a.sim_time > 0 or a.warmup_time < 0:
     ap.error('--dt must be > 0, --sim-time > 0, --warmup-time >= 0, --momentum 1 and/or 0')
+if a.tolerance is not None and not 0 < a.tolerance < 1:
+    ap.error('--tolerance must lie in (0, 1)')
 
 rows = []
 for dt in dts:
@@ -51,6 +54,8 @@ for dt in dts:
         p = pile.scene_from_snapshot(a.snapshot, dt=dt)
         cd = yadecd.integrator()
         cd.momentum = momentum
+        if a.tolerance is not None:
+            cd.tolerance = a.tolerance
         feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {})
         period = pile.creation_period(p['rate'], dt)
         n_warm, n_count = int(round(a.warmup_time / dt)), int(round(a.sim_time / dt))
@@ -72,7 +77,7 @@ for dt in dts:
         wall = time.time() - (wall0 or time.time())
         s = np.array(sweeps, float)
         row = {'snapshot': os.path.basename(a.snapshot), 'snapshot_time_s': p.get('time', float('nan')),
-               'grains': len(O.bodies), 'dt_s': dt, 'momentum': int(momentum), 'steps': len(s),
+               'grains': len(O.bodies), 'dt_s': dt, 'momentum': int(momentum), 'tolerance': cd.tolerance, 'steps': len(s),
                'contacts_mean': float(np.mean(contacts)), 'sweeps_median': float(np.median(s)),
                'sweeps_mean': float(np.mean(s)), 'sweeps_p90': float(np.quantile(s, 0.9)),
                'sweeps_per_sim_s': float(s.sum() / a.sim_time),
