@@ -41,6 +41,7 @@ ap.add_argument('--spacing', type=int, default=1, help='steps between two saved 
 ap.add_argument('--tolerance', type=float, default=None, help="solver tolerance (default: the run's)")
 ap.add_argument('--schedule', choices=('height', 'colours', 'slabs'), default=None, help='sweep schedule (default: the run\'s)')
 ap.add_argument('--slabs', type=int, default=None)
+ap.add_argument('--dt', type=float, default=None, help="snapshots: the time step [s] (default: the run's)")
 a = ap.parse_args(sys.argv[1:])
 if not os.path.exists(a.source):
     ap.error('no snapshot or run directory %s' % a.source)
@@ -49,6 +50,8 @@ if a.warmup < 0 or a.count < 1 or a.spacing < 1:
 from_run = os.path.isdir(a.source)
 if from_run and not os.path.exists(os.path.join(a.source, 'run.json')):
     ap.error('%s is a directory without run.json: not a pile run' % a.source)
+if a.dt is not None and (from_run or not a.dt > 0):
+    ap.error('--dt takes a positive time step, and only with a snapshot (a run keeps its own)')
 
 
 def outputs():
@@ -95,7 +98,7 @@ if from_run:
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 else:
-    p = pile.scene_from_snapshot(a.source)
+    p = pile.scene_from_snapshot(a.source, **({'dt': a.dt} if a.dt is not None else {}))
     cd = yadecd.integrator()
     configure(cd)
     feeder = pile.Feeder(p, np.random.default_rng(p['seed'] + 77), {}) if a.feed else None
