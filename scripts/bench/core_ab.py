@@ -26,7 +26,8 @@ FIGURES = (('sweeps', r'(\d+) sweeps \('),
            ('contact_updates', r'; (\d+) contact updates'),
            ('solve_ms', r'solve ([0-9.]+) ms'),
            ('correct_ms', r'correct ([0-9.]+) ms'),
-           ('ns_per_contact_sweep', r'time per contact-sweep: ([0-9.]+) ns'))
+           ('ns_per_contact_sweep', r'time per contact-sweep: ([0-9.]+) ns'),
+           ('residual_checks', r'(\d+) residual checks'))
 
 
 def parse(text):

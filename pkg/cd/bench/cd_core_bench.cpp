@@ -49,7 +49,7 @@ double seconds()
 
 struct StepTimes {
 	double assemble, solve, correct;
-	int    sweeps, correctionSweeps, interface, fullSweeps, wide;
+	int    sweeps, correctionSweeps, interface, fullSweeps, wide, residualChecks;
 	std::string stages; // the schedule: per stage, its ranges' contact counts ('|' between stages, ' ' between ranges, 's:' before a serial stage's)
 	long   contacts, updates;
 	double residual;
@@ -128,6 +128,7 @@ StepTimes runStep(const cd::SavedProblem& pb, const cd::Params& p)
 	t.correct  = t3 - t2;
 	t.sweeps   = st.iterations;
 	t.fullSweeps = st.fullSweeps;
+	t.residualChecks = st.residualChecks;
 	t.updates  = st.contactUpdates;
 	t.contacts = long(s.contacts.size());
 	return t;
@@ -148,7 +149,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N] [--check-every N]\n", what);
 	std::exit(2);
 }
 
@@ -158,7 +159,7 @@ int main(int argc, char** argv)
 {
 	if (argc < 2) usage("no problem file given");
 	std::string file = argv[1], csv, history, trace;
-	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1, stallWindow = -1;
+	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1, stallWindow = -1, checkEvery = -1;
 	double      workThreshold = -1;
 	int         k1 = 20, k2 = 120, repeat = 3;
 	int         schedule = -1, slabs = -1, across = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
@@ -189,6 +190,7 @@ int main(int argc, char** argv)
 		else if (a == "--max-iter") maxIter = std::stoi(v);
 		else if (a == "--bodies-in-sweep-order") bodyOrder = std::stoi(v);
 		else if (a == "--stall-window") stallWindow = std::stoi(v);
+		else if (a == "--check-every") checkEvery = std::stoi(v);
 		else usage(("unknown option " + a).c_str());
 	}
 	if (!(k1 >= 1 && k2 > k1 && repeat >= 1)) usage("need 1 ≤ k1 < k2 and repeat ≥ 1");
@@ -206,6 +208,7 @@ int main(int argc, char** argv)
 		if (maxIter > 0) p.maxIter = maxIter;
 		if (bodyOrder >= 0) p.bodiesInSweepOrder = bodyOrder;
 		if (stallWindow > 0) p.stallWindow = stallWindow;
+		if (checkEvery > 0) p.checkEvery = checkEvery;
 		if (worklist >= 0) p.worklist = worklist;
 		if (workThreshold > 0) p.worklistThreshold = workThreshold;
 		if (workFull >= 0) p.worklistFullSweeps = workFull;
@@ -222,8 +225,8 @@ int main(int argc, char** argv)
 		}
 		std::printf("%s: %zu bodies, %ld contacts; schedule %d, slabs %d x %d, momentum %d, sphere kernel %d, %d thread(s)\n", file.c_str(),
 		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, p.slabsAcross, int(p.momentum), int(p.sphereFastPath), threads);
-		std::printf("  step at the file's tolerance %g: %d sweeps (%d full; %ld contact updates, %.1f sweeps' worth; residual %.3g), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
-		            double(p.tolerance), step.sweeps, step.fullSweeps, step.updates, double(step.updates) / double(std::max(step.contacts, 1L)), step.residual, step.correctionSweeps,
+		std::printf("  step at the file's tolerance %g: %d sweeps (%d full; %ld contact updates, %.1f sweeps' worth; residual %.3g, %d residual checks), %d correction sweeps, %d interface contacts; assemble %.3f ms, solve %.3f ms, correct %.3f ms\n",
+		            double(p.tolerance), step.sweeps, step.fullSweeps, step.updates, double(step.updates) / double(std::max(step.contacts, 1L)), step.residual, step.residualChecks, step.correctionSweeps,
 		            step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
 		std::printf("  schedule: %s (%d interface contacts, %d of them touching three parts or more)\n", step.stages.c_str(), step.interface, step.wide);
 		if (p.worklist) std::printf("  worklist: threshold %g x tolerance x |q| / sqrt(contacts), %d full sweeps first\n", double(p.worklistThreshold), p.worklistFullSweeps);
@@ -246,12 +249,12 @@ int main(int argc, char** argv)
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();
 			std::ofstream out(csv, std::ios::app);
-			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,wide,stages,slabs_across\n";
+			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,wide,stages,slabs_across,residual_checks,check_every\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
 			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
 			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << ',' << int(p.worklist) << ',' << double(p.worklistThreshold) << ','
-			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.wide << ',' << step.stages << ',' << p.slabsAcross << '\n';
+			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.wide << ',' << step.stages << ',' << p.slabsAcross << ',' << step.residualChecks << ',' << p.checkEvery << '\n';
 		}
 	} catch (const std::exception& e) {
 		std::fprintf(stderr, "cd_core_bench: %s\n", e.what());

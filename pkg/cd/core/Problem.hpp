@@ -157,6 +157,7 @@ namespace cd {
 		int               nInterface = 0, nColours = 0, nWide = 0;
 		long              contactUpdates = 0;  // local updates made (sweeps × contacts without the worklist)
 		int               fullSweeps = 0;      // sweeps over every contact (all of them without the worklist)
+		int               residualChecks = 0;  // evaluations of the exact residual (each costs about a sweep)
 		std::vector<Real> residualHistory;
 		// Params::traceContacts: per sweep s and contact k (the schedule's order, ContactSet after
 		// the solve), at index s·contacts + k: W_NN|Δr| of the sweep's update (0: not visited) and

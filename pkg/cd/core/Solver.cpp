@@ -458,6 +458,7 @@ namespace cd {
 			}
 			if (it == p.maxIter || (((quiet && full) || p.recordResidual) && it % p.checkEvery == 0)) {
 				stats.residual = residual(stats);
+				++stats.residualChecks;
 				if (p.recordResidual) stats.residualHistory.push_back(stats.residual);
 				if (stats.residual <= p.tolerance) {
 					stats.converged = true;
