@@ -104,6 +104,22 @@ class TestSchedule(unittest.TestCase):
                 O.load(path)
                 self.assertEqual(yadecd.integrator().schedule, name)
 
+    def test_unsaved_options_are_those_the_archive_drops(self):
+        # a resume from a checkpoint's archive sets protocol.UNSAVED_OPTIONS again from run.json:
+        # they must be exactly the pile's solver options that O.save / O.load do not keep
+        changed = dict(tolerance=2e-4, max_iter=1234, relaxation=0.9, momentum=False, correction_momentum=True,
+                       schedule='colours', slabs=3, slabs_across=2, parallel_min_contacts=7)
+        self.assertEqual(set(changed), set(protocol.SOLVER_OPTIONS), 'a new pile solver option: give it a changed value here')
+        with tempfile.TemporaryDirectory() as d:
+            scenes.column(3, **protocol.engine_options(changed))
+            path = os.path.join(d, 'scene.yade.gz')
+            O.save(path)
+            scenes.column(3)
+            O.load(path)
+            cd = yadecd.integrator()
+            dropped = {key for key, attr in protocol.SOLVER_OPTIONS.items() if getattr(cd, attr) != changed[key]}
+        self.assertEqual(dropped, set(protocol.UNSAVED_OPTIONS))
+
     def test_old_checkpoint_archive_loads_with_a_named_schedule(self):
         # tests/data's first-release checkpoint holds YADE's archive of a pile run (sweepOrder 5
         # in its run.json): the engine it loads has the matching schedule name

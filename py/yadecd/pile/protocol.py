@@ -18,6 +18,10 @@ SOLVER_OPTIONS = {'tolerance': 'tolerance', 'max_iter': 'maxIter', 'relaxation':
                   'correction_momentum': 'correctionMomentum', 'schedule': 'schedule', 'slabs': 'slabs',
                   'slabs_across': 'slabsAcross', 'parallel_min_contacts': 'parallelMinContacts'}
 
+#: The solver options that YADE's archive does not keep (``Attr::noSave``): a resume from a
+#: checkpoint's scene sets them again from the run's parameters.
+UNSAVED_OPTIONS = ('correction_momentum', 'parallel_min_contacts', 'slabs_across')
+
 #: Where the pile departs from the engine's defaults (why: docs/pile.md, "Solver settings").
 SOLVER_DEPARTURES = dict(
     tolerance=1e-3,      # the forces a pile's analyses read need no more (docs/pile.md, "Force accuracy")

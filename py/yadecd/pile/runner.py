@@ -16,8 +16,8 @@ from ..runs import cost as runcost, runstate
 from ..runs.runstate import RunStateError  # noqa: F401 (reachable as yadecd.pile.RunStateError)
 from ..runs.checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .build import Clock, Feeder, add_clump, add_grain, build_scene, solver_stats
-from .protocol import (BRANCH_MAY_CHANGE, RESUME_MAY_CHANGE, check_params, creation_period, defaults, disk_need,
-                       feed_end_time, read_run_json, snapshot_times, upgrade)
+from .protocol import (BRANCH_MAY_CHANGE, RESUME_MAY_CHANGE, UNSAVED_OPTIONS, check_params, creation_period, defaults,
+                       disk_need, engine_options, feed_end_time, read_run_json, snapshot_times, upgrade)
 from .write import snapshot
 
 
@@ -197,10 +197,10 @@ class PileRun:
         scene = os.path.join(unit, 'scene.yade.gz')
         if meta.get('plugin_digest') == runstate.plugin_digest() and os.path.exists(scene):
             O.load(scene)
-            # attributes not saved with the scene come from the run's parameters
-            O.engines[-1].correctionMomentum = bool(self.p.get('correction_momentum', False))
-            O.engines[-1].parallelMinContacts = int(self.p['parallel_min_contacts'])
-            O.engines[-1].slabsAcross = int(self.p['slabs_across'])
+            # the solver options not saved with the scene come from the run's parameters
+            unsaved = {key: self.p[key] for key in UNSAVED_OPTIONS if key in self.p}
+            for attr, value in engine_options(unsaved).items():
+                setattr(O.engines[-1], attr, value)
             self.clock.t0, self.clock.i0 = meta['time_offset'], meta['iter_offset']
             self.resumed_from = 'checkpoint %d, YADE archive: bit-identical continuation' % seq
         else:
