@@ -7,6 +7,8 @@ bookkeeping.
 Pure numpy (runs inside YADE with ``bash tests/run.sh`` and with ``/usr/bin/python3 -m unittest``
 from tests/).
 """
+import contextlib
+import io
 import json
 import math
 import re
@@ -412,6 +414,69 @@ class TestWallLoad(unittest.TestCase):
                 'c_point': np.zeros((4, 3)), 'c_normal': np.tile([0.0, 0, 1], (4, 1)),
                 'c_force': np.array([[0.1, 0, -2.0], [0, 0.2, 3.0], [0, 0, -50.0], [0, 0, -7.0]])}
         self.assertAlmostEqual(ground.wall_load(snap), 5.0, delta=1e-12)
+
+    def test_dip_and_pressure_with_the_plane(self):
+        """central_dip and ground_pressure with plane=True add the plane's loads at their points.
+        d = 4 mm: disc r < 8 mm, annulus 8-16 mm (area 3 times the disc's). Paving: 4 N in the
+        disc, 6 N in the annulus; plane: 1 N in the disc (grain body 1), 2 N in the annulus
+        (grain body 2); a paving grain on the plane never counts. D = 1 - 4/(6/3) = -1 on the
+        paving, 1 - 5/(8/3) = -0.875 with the plane; floor loads 10 and 13 N."""
+        from yadecd.analysis import ground
+        snap = {'time': 1.0, 'g': 9.81, 'rho': 1000.0, 'pos': np.zeros((3, 3)), 'radius': np.full(3, 0.002),
+                'vel': np.zeros((3, 3)), 'fixed': np.array([False, False, True]), 'birth': np.zeros(3),
+                'ids': np.array([5, 6, 7]), 'c_id1': np.array([5, 6, 5, 0, 7]), 'c_id2': np.array([7, 7, 0, 6, 0]),
+                'c_point': np.array([[0.001, 0, 0], [0.012, 0, 0], [0.002, 0.001, 0], [0, 0.010, 0], [0.003, 0, 0]]),
+                'c_normal': np.tile([0.0, 0, 1], (5, 1)),
+                'c_force': np.array([[0, 0, -4.0], [0.3, 0, -6.0], [0, 0, -1.0], [0, 0, 2.0], [0, 0, -50.0]])}
+        self.assertAlmostEqual(pa.central_dip(snap, d=0.004)['D'], -1.0, delta=1e-12)
+        self.assertAlmostEqual(pa.central_dip(snap, d=0.004, plane=True)['D'], -0.875, delta=1e-12)
+        for plane, total in ((False, 10.0), (True, 13.0)):
+            gp = ground.ground_pressure(snap, 0.008, r_max=0.016, rho_bulk=600.0, H=0.01, plane=plane)
+            self.assertAlmostEqual(gp['total_load_N'], total, delta=1e-12)
+            self.assertAlmostEqual(gp['pressure_Pa'][0] * gp['area'][0], 4.0 + plane, delta=1e-12)
+        self.assertAlmostEqual(ground.wall_load(snap), 3.0, delta=1e-12)
+
+    def test_plane_script(self):
+        """scripts/pile_plane_load.py on two constructed dimer runs (the floor of the test above,
+        the second with 1 N more on the plane in the annulus: D -0.875 -> 1 - 5/3 = -0.667):
+        per-pile rows, the paired mean change (0.125 and 0.333: mean 0.229) and its interval, the
+        plane's share of the floor load (3/13, 4/14); a run without a snapshot is refused by name."""
+        import importlib.util
+        import tempfile
+        spec = importlib.util.spec_from_file_location('pile_plane_load', os.path.join(SCRIPTS, 'pile_plane_load.py'))
+        script = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(script)
+        r = 0.0025  # mean diameter of the pile grains: d = 5 mm, disc 10 mm, annulus 10-20 mm
+        base = dict(time=1.0, g=9.81, rho=1000.0, pos=np.zeros((3, 3)), radius=np.array([r, r, 0.002]),
+                    vel=np.zeros((3, 3)), fixed=np.array([False, False, True]), birth=np.zeros(3), ids=np.array([5, 6, 7]),
+                    c_normal=np.tile([0.0, 0, 1], (5, 1)))
+        pts = np.array([[0.001, 0, 0], [0.012, 0, 0], [0.002, 0.001, 0], [0, 0.015, 0], [0.003, 0, 0]])
+        force = np.array([[0, 0, -4.0], [0.3, 0, -6.0], [0, 0, -1.0], [0, 0, 2.0], [0, 0, -50.0]])
+        with tempfile.TemporaryDirectory() as tmp:
+            for seed, extra in ((1, 0.0), (2, 1.0)):
+                run = os.path.join(tmp, 'dimer_n1000_s%d' % seed)
+                os.makedirs(run)
+                with open(os.path.join(run, 'run.json'), 'w') as f:
+                    json.dump({'grain_shape': 'dimer', 'n_grains': 1000, 'seed': seed}, f)
+                np.savez(os.path.join(run, 'snap_0006.000.npz'), c_id1=np.array([5, 6, 5, 0, 7]), c_id2=np.array([7, 7, 0, 6, 0]),
+                         c_point=pts, c_force=force + np.array([0, 0, 0, extra, 0])[:, None] * [0, 0, 1], **base)
+            with contextlib.redirect_stdout(io.StringIO()):
+                rows = script.main([os.path.join(tmp, 'dimer_n1000_s1'), os.path.join(tmp, 'dimer_n1000_s2')])
+            self.assertEqual([x['seed'] for x in rows], [1, 2])
+            self.assertAlmostEqual(rows[0]['D_paving'], -1.0, delta=1e-12)
+            self.assertAlmostEqual(rows[0]['D_with_plane'], -0.875, delta=1e-12)
+            self.assertAlmostEqual(rows[1]['D_with_plane'], 1 - 5 / 3, delta=1e-12)
+            self.assertAlmostEqual(rows[0]['plane_share_floor'], 3 / 13, delta=1e-12)
+            self.assertAlmostEqual(rows[1]['plane_share_disc'], 1 / 5, delta=1e-12)
+            g, = script.summary(rows)
+            self.assertEqual((g['grain_shape'], g['n_grains'], g['piles']), ('dimer', 1000, 2))
+            self.assertAlmostEqual(g['D_change_mean'], (0.125 + (1 - 5 / 3 + 1)) / 2, delta=1e-12)
+            half = pa.t_quantile_975(1) * abs(0.125 - (1 - 5 / 3 + 1)) / 2  # t(0.975, 1) · sem of two values
+            self.assertAlmostEqual(g['D_change_ci95'][1] - g['D_change_mean'], half, delta=1e-9)
+            self.assertIn('| dimer | 1000 | 2 |', script.table_markdown([g]))
+            os.makedirs(os.path.join(tmp, 'empty'))
+            with self.assertRaisesRegex(SystemExit, 'empty: no snapshot'):
+                script.main([os.path.join(tmp, 'empty')])
 
 
 class TestStoredRecords(unittest.TestCase):

@@ -10,7 +10,7 @@ from .stats import jackknife_ratio_dip
 from .surface import profile_and_slope
 
 
-def _floor_loads(snap):
+def _paving_loads(snap):
     """Contacts between a pile grain (not fixed) and a paving grain (fixed): contact point
     (K,3) [m] and the downward vertical load on the paving grain, -F_z of the force exerted on it
     by the pile grain [N] (positive when pressing)."""
@@ -22,21 +22,39 @@ def _floor_loads(snap):
     return cont['point'][mixed], -on_paving[:, 2]
 
 
-def wall_load(snap):
-    """Downward load [N] of the pile grains on bodies that are not grains of the snapshot (the
-    floor wall under the paving): the sum over contacts between a non-fixed grain and such a body
-    of the vertical force pressing on that body. :func:`ground_pressure` counts the paving grains
-    only; this is what reaches the plane between them (more for clumps, whose members are smaller
-    than the paving grains)."""
-    snap = as_snapshot(snap)
+def _plane_loads(snap):
+    """Contacts between a pile grain (not fixed) and a body that is not a grain of the snapshot
+    (the floor wall under the paving): contact point (K,3) [m] and the downward vertical load on
+    that body [N] (positive when pressing)."""
     i1, i2 = body_index(snap, snap['c_id1']), body_index(snap, snap['c_id2'])
-    load = 0.0
+    points, loads = [], []
     for grain, other, sign in ((i1, i2, 1.0), (i2, i1, -1.0)):
         pick = (grain >= 0) & (other < 0)
         pick[pick] = ~snap['fixed'][grain[pick]]
         # c_force acts on body 2: on the wall when the wall is body 2 (sign +1 here: grain is body 1)
-        load += float(-(sign * snap['c_force'][pick, 2]).sum())
-    return load
+        points.append(snap['c_point'][pick])
+        loads.append(-sign * snap['c_force'][pick, 2])
+    return np.concatenate(points), np.concatenate(loads)
+
+
+def _floor_loads(snap, plane=False):
+    """Contact points (K,3) [m] and downward loads [N] of the pile on its floor: on the paving
+    grains (the paper's floor), and with ``plane`` also on the plane between them
+    (:func:`wall_load`)."""
+    point, load = _paving_loads(snap)
+    if plane:
+        wp, wl = _plane_loads(snap)
+        point, load = np.concatenate([point, wp]), np.concatenate([load, wl])
+    return point, load
+
+
+def wall_load(snap):
+    """Downward load [N] of the pile grains on bodies that are not grains of the snapshot (the
+    floor wall under the paving): the sum over contacts between a non-fixed grain and such a body
+    of the vertical force pressing on that body. :func:`ground_pressure` and :func:`central_dip`
+    count the paving grains only unless given ``plane=True``; this is what reaches the plane
+    between them (more for clumps, whose members are smaller than the paving grains)."""
+    return float(_plane_loads(as_snapshot(snap))[1].sum())
 
 
 def _ring_sums(r, phi, load, ring_width, n_rings, n_sectors):
@@ -50,7 +68,7 @@ def _ring_sums(r, phi, load, ring_width, n_rings, n_sectors):
 
 
 def ground_pressure(snap, ring_width, r_max=None, n_sectors=8, rho_bulk=None, H=None,
-                    profile=None):
+                    profile=None, plane=False):
     """Pressure of the pile on the floor per concentric ring (Moreau's Fig. 5).
 
     Ring k covers k·w ≤ r < (k+1)·w about Oz (w = ``ring_width`` [m]); ring 0 is a disc. Its
@@ -63,6 +81,8 @@ def ground_pressure(snap, ring_width, r_max=None, n_sectors=8, rho_bulk=None, H=
     :param r_max: outer radius covered [m]; default: just beyond the farthest floor contact.
     :param rho_bulk, H: bulk density [kg/m³] and pile height [m] of the hydrostatic reference
         rho_bulk·g·H; measured by :func:`profile_and_slope` (or taken from ``profile``) when None.
+    :param plane: also count the loads on the plane between the paving grains (the floor wall;
+        :func:`wall_load`), at their contact points.
     :returns: dict ``r_in``, ``r_out``, ``r_mid`` [m], ``area`` [m²], ``pressure_Pa``,
         ``err_Pa``, ``sector_pressure_Pa`` (n_rings, n_sectors), ``n_contacts`` per ring,
         ``hydrostatic_Pa``, ``rho_bulk`` [kg/m³], ``H`` [m], ``rho_grain`` [kg/m³],
@@ -74,7 +94,7 @@ def ground_pressure(snap, ring_width, r_max=None, n_sectors=8, rho_bulk=None, H=
         profile = profile_and_slope(snap)
     rho_bulk = profile['rho_bulk'] if rho_bulk is None else float(rho_bulk)
     H = profile['H'] if H is None else float(H)
-    point, load = _floor_loads(snap)
+    point, load = _floor_loads(snap, plane)
     r = np.hypot(point[:, 0], point[:, 1])
     phi = np.mod(np.arctan2(point[:, 1], point[:, 0]), 2 * math.pi)
     if r_max is None:
@@ -105,7 +125,7 @@ DIP_DISC_D = 2.0        # the central disc: r < 2 mean diameters (0.75 cm, the f
 DIP_RING_D = 4.0        # the reference annulus: 2 d <= r < 4 d
 
 
-def central_dip(snap, r0_d=DIP_DISC_D, r1_d=DIP_RING_D, n_sectors=8, d=None):
+def central_dip(snap, r0_d=DIP_DISC_D, r1_d=DIP_RING_D, n_sectors=8, d=None, plane=False):
     """The central dip of the floor pressure as a statistic:
 
         D = 1 - p(r < r0) / p(r0 <= r < r1),
@@ -119,7 +139,8 @@ def central_dip(snap, r0_d=DIP_DISC_D, r1_d=DIP_RING_D, n_sectors=8, d=None):
     The uncertainty is the delete-one-sector jackknife over ``n_sectors`` azimuthal sectors
     (paired: a sector's disc and annulus loads leave together), with a Student-t interval of
     n_sectors - 1 degrees of freedom, and ``confidence_positive`` the one-sided confidence that
-    D > 0. Pressures use the floor loads of :func:`ground_pressure` (pile grains on paving grains).
+    D > 0. Pressures use the floor loads of :func:`ground_pressure` (pile grains on paving grains,
+    and with ``plane`` also on the plane between them).
 
     :returns: dict ``D``, ``se``, ``ci95``, ``confidence_positive``, ``p_disc_Pa``, ``p_ring_Pa``,
         ``n_disc``, ``n_ring`` (contacts), ``r0``, ``r1`` [m], ``sector_disc_N``,
@@ -128,7 +149,7 @@ def central_dip(snap, r0_d=DIP_DISC_D, r1_d=DIP_RING_D, n_sectors=8, d=None):
     snap = as_snapshot(snap)
     d = mean_diameter(snap) if d is None else float(d)
     r0, r1 = r0_d * d, r1_d * d
-    point, load = _floor_loads(snap)
+    point, load = _floor_loads(snap, plane)
     r = np.hypot(point[:, 0], point[:, 1])
     phi = np.mod(np.arctan2(point[:, 1], point[:, 0]), 2 * math.pi)
     s = np.minimum((phi / (2 * math.pi / n_sectors)).astype(int), n_sectors - 1)
