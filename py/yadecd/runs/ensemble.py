@@ -290,16 +290,58 @@ def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_faile
     return runs
 
 
+def progress_of(run_dir):
+    """Where an unfinished run stands, from its ``progress.csv`` and ``run.json``: dict ``time_s``,
+    ``end_s`` (the end of its feed plus its relaxation; None without run.json), ``grains`` and
+    ``wall_s`` (its wall time so far, over all segments); None before its first progress line."""
+    try:
+        with open(os.path.join(run_dir, 'progress.csv')) as f:
+            lines = [ln.strip() for ln in f if ln.strip()]
+    except OSError:
+        return None
+    head, row = lines[0].split(',') if lines else [], None
+    for line in reversed(lines[1:]):      # the last complete line (a full disk may cut the last one short)
+        fields = line.split(',')
+        try:
+            row = dict(zip(head, map(float, fields))) if len(fields) == len(head) else None
+        except ValueError:
+            row = None
+        if row is not None and {'time_s', 'grains', 'wall_s'} <= set(row):
+            break
+        row = None
+    if row is None:
+        return None
+    end = None
+    try:
+        with open(os.path.join(run_dir, 'run.json')) as f:
+            p = json.load(f)
+        end = feed_time(int(p['n_grains']), p.get('rate', DEFAULTS['rate']), p.get('dt', DEFAULTS['dt'])) + float(p.get('relax', 0))
+    except (OSError, ValueError, KeyError):
+        pass
+    return {'time_s': row['time_s'], 'end_s': end, 'grains': int(row['grains']), 'wall_s': row['wall_s']}
+
+
 def status_lines(root):
-    """One line per run: name, state, attempts, wall time, and the first error line."""
+    """One line per run: name, state, attempts, and its wall time when it is done, where it
+    stands when it is not (simulated time of its end, grains, wall time so far: :func:`progress_of`),
+    the first error line when it failed."""
     ens = Ensemble(root)
     lines = []
     for name, rec in sorted(ens.runs().items(), key=lambda kv: (kv[1]['n_grains'], kv[1]['seed'])):
-        state = 'done' if is_done(os.path.join(ens.root, name)) else rec['state']
+        run_dir = os.path.join(ens.root, name)
+        done = is_done(run_dir)
+        state = 'done' if done else rec['state']
         err = (rec.get('error') or '').strip().splitlines()
-        lines.append('%-12s %-8s attempts %d  %s%s' % (name, state, rec.get('attempts', 0),
-                                                        '%.0f s' % rec['wall_s'] if 'wall_s' in rec else '',
-                                                        ('  error: ' + err[-1]) if err and state == 'failed' else ''))
+        where = ''
+        if done and 'wall_s' in rec:
+            where = '%.0f s' % rec['wall_s']
+        elif not done:
+            pr = progress_of(run_dir)
+            if pr is not None:
+                where = 't = %.2f%s s, %s grains, %.0f s of wall time so far' % (
+                    pr['time_s'], '' if pr['end_s'] is None else ' of %.2f' % pr['end_s'], pr['grains'], pr['wall_s'])
+        lines.append('%-12s %-9s attempts %d  %s%s' % (name, state, rec.get('attempts', 0), where,
+                                                       ('  error: ' + err[-1]) if err and state == 'failed' else ''))
     return lines
 
 
