@@ -516,6 +516,12 @@ class TestSizeLabels(unittest.TestCase):
         self.assertIn('| 5000 (h = 0.001 s) grains, relaxed (1 seed) |', head)
         self.assertIn('| 1000 grains, relaxed (1 seed) |', head)
         self.assertIn('300 (h = 0.0002, 0.001 s) grains, relaxed (2 seeds)', head)
+        # a feed radius other than the paper's 0.8 cm is named too (older records: the paper's)
+        recs += [dict(TestEnsembleStatistics.record(2000, 2, 'relaxed', 27.0, 1.0, 1.0), feed_radius_m=0.004, dt_s=1e-3),
+                 dict(TestEnsembleStatistics.record(1000, 2, 'relaxed', 27.0, 1.0, 1.0), feed_radius_m=0.008)]
+        labels = pea.size_labels(recs)
+        self.assertEqual(labels[2000], '2000 (h = 0.0002, 0.001 s; feed radius 0.4, 0.8 cm)')
+        self.assertEqual(labels[1000], '1000')
 
 
 class TestPaperTable(unittest.TestCase):

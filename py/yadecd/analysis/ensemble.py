@@ -67,7 +67,8 @@ def run_record(snap_path, params):
     free = ~snap['fixed']
     rec = {'snapshot': os.path.basename(snap_path), 'time_s': snap['time'], 'n_grains': int(params.get('n_grains', 0)),
            'grain_shape': params.get('grain_shape', 'sphere'),
-           'seed': params.get('seed'), 'dt_s': float(params.get('dt', DEFAULTS['dt'])), 'n_contacts': len(pa.grain_contacts(snap)['i1']),
+           'seed': params.get('seed'), 'dt_s': float(params.get('dt', DEFAULTS['dt'])),
+           'feed_radius_m': float(params.get('feed_radius', DEFAULTS['feed_radius'])), 'n_contacts': len(pa.grain_contacts(snap)['i1']),
            'slope_deg': prof['slope_deg'], 'slope_err_deg': prof['slope_err_deg'], 'slope_note': prof['slope_note'],
            'chord_angle_deg': prof['chord_angle_deg'], 'slope_ls_window_deg': prof['slope_ls_window_deg'],
            'H_m': prof['H'], 'd_m': prof['d'], 'base_radius_m': prof['profile_radius'],
@@ -150,13 +151,23 @@ def _dt(record):
     return record.get('dt_s', DEFAULTS['dt'])
 
 
+def _feed_radius(record):
+    """The record's feed radius [m] (records written before it was kept used the paper's 0.8 cm)."""
+    return record.get('feed_radius_m', DEFAULTS['feed_radius'])
+
+
 def size_labels(records):
     """{n_grains: label}: the grain count, with the time step where a size's runs did not use the
-    paper's h (the faster protocol of docs/pile.md), so that no table or figure mixes them silently."""
+    paper's h (the faster protocol of docs/pile.md) and the feed radius where it is not the paper's
+    0.8 cm, so that no table or figure mixes them silently."""
     out = {}
     for n in sorted({r['n_grains'] for r in records}):
-        dts = sorted({_dt(r) for r in records if r['n_grains'] == n})
-        out[n] = str(n) if dts == [DEFAULTS['dt']] else '%d (h = %s s)' % (n, ', '.join('%g' % d for d in dts))
+        mine = [r for r in records if r['n_grains'] == n]
+        dts, feeds = sorted({_dt(r) for r in mine}), sorted({_feed_radius(r) for r in mine})
+        notes = [] if dts == [DEFAULTS['dt']] else ['h = %s s' % ', '.join('%g' % d for d in dts)]
+        if feeds != [DEFAULTS['feed_radius']]:
+            notes.append('feed radius %s cm' % ', '.join('%g' % (100 * f) for f in feeds))
+        out[n] = '%d (%s)' % (n, '; '.join(notes)) if notes else str(n)
     return out
 
 
