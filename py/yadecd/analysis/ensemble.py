@@ -309,7 +309,8 @@ def _size_axis(ax, records):
     ax.set_xscale('log')
     ax.set_xticks(sizes)
     labels = size_labels(records)
-    ax.set_xticklabels([labels[n].replace(' (', '\n(') for n in sizes])
+    # one line per item of a label, so that the labels of neighbouring sizes do not run into each other
+    ax.set_xticklabels([labels[n].replace(' (', '\n(').replace(', ', ',\n').replace('; ', ';\n') for n in sizes], fontsize=8)
     ax.minorticks_off()
     if sizes:
         ax.set_xlim(sizes[0] / 1.4, sizes[-1] * 1.4)
