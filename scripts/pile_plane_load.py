@@ -44,14 +44,14 @@ def measure(snap_path, params):
     paving, both = pa.central_dip(snap), pa.central_dip(snap, plane=True)
     share = lambda part, whole: part / whole if whole > 0 else float('nan')  # noqa: E731
     plane = ground.wall_load(snap)
-    paving_total = float(ground._paving_loads(snap)[1].sum())
+    paving_total = float(ground.paving_loads(snap)[1].sum())
     return {'snapshot': snap_path, 'grain_shape': params.get('grain_shape', 'sphere'),
             'n_grains': int(params.get('n_grains', 0)), 'seed': params.get('seed'), 'time_s': snap['time'],
             'D_paving': paving['D'], 'D_with_plane': both['D'], 'D_change': both['D'] - paving['D'],
             'plane_share_floor': share(plane, plane + paving_total),
             'plane_share_disc': share(both['p_disc_Pa'] - paving['p_disc_Pa'], both['p_disc_Pa']),
             'plane_share_annulus': share(both['p_ring_Pa'] - paving['p_ring_Pa'], both['p_ring_Pa']),
-            'n_plane_contacts': int(len(ground._plane_loads(snap)[1])),
+            'n_plane_contacts': int(len(ground.plane_loads(snap)[1])),
             'weight_N': float(pa.grain_masses(snap)[~snap['fixed']].sum() * snap['g']) if np.any(~snap['fixed']) else 0.0}
 
 

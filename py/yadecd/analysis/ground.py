@@ -10,7 +10,7 @@ from .stats import jackknife_ratio_dip
 from .surface import profile_and_slope
 
 
-def _paving_loads(snap):
+def paving_loads(snap):
     """Contacts between a pile grain (not fixed) and a paving grain (fixed): contact point
     (K,3) [m] and the downward vertical load on the paving grain, -F_z of the force exerted on it
     by the pile grain [N] (positive when pressing)."""
@@ -22,7 +22,7 @@ def _paving_loads(snap):
     return cont['point'][mixed], -on_paving[:, 2]
 
 
-def _plane_loads(snap):
+def plane_loads(snap):
     """Contacts between a pile grain (not fixed) and a body that is not a grain of the snapshot
     (the floor wall under the paving): contact point (K,3) [m] and the downward vertical load on
     that body [N] (positive when pressing)."""
@@ -41,9 +41,9 @@ def _floor_loads(snap, plane=False):
     """Contact points (K,3) [m] and downward loads [N] of the pile on its floor: on the paving
     grains (the paper's floor), and with ``plane`` also on the plane between them
     (:func:`wall_load`)."""
-    point, load = _paving_loads(snap)
+    point, load = paving_loads(snap)
     if plane:
-        wp, wl = _plane_loads(snap)
+        wp, wl = plane_loads(snap)
         point, load = np.concatenate([point, wp]), np.concatenate([load, wl])
     return point, load
 
@@ -54,7 +54,7 @@ def wall_load(snap):
     of the vertical force pressing on that body. :func:`ground_pressure` and :func:`central_dip`
     count the paving grains only unless given ``plane=True``; this is what reaches the plane
     between them (more for clumps, whose members are smaller than the paving grains)."""
-    return float(_plane_loads(as_snapshot(snap))[1].sum())
+    return float(plane_loads(as_snapshot(snap))[1].sum())
 
 
 def _ring_sums(r, phi, load, ring_width, n_rings, n_sectors):
