@@ -31,28 +31,31 @@ def snapshot_of(path, epoch):
         raise SystemExit('%s: no snapshot' % path)
     if epoch == 'relaxed':
         return snaps[-1][1], params
+    if 'n_grains' not in params:
+        raise SystemExit('%s: no run.json with n_grains beside the snapshots: the end of the feed is unknown' % path)
     t_feed = feed_time(int(params['n_grains']), params.get('rate', DEFAULTS['rate']), params.get('dt', DEFAULTS['dt']))
     return min(snaps, key=lambda s: abs(s[0] - t_feed))[1], params
 
 
 def measure(snap_path, params):
     """One row: D on the paving and with the plane, and the plane's shares of the loads."""
-    import numpy as np
     from yadecd import analysis as pa
     from yadecd.analysis import ground
-    snap = pa.as_snapshot(pa.load_snapshot(snap_path))
+    snap = pa.load_snapshot(snap_path)
     paving, both = pa.central_dip(snap), pa.central_dip(snap, plane=True)
-    share = lambda part, whole: part / whole if whole > 0 else float('nan')  # noqa: E731
-    plane = ground.wall_load(snap)
-    paving_total = float(ground.paving_loads(snap)[1].sum())
+    plane = ground.plane_loads(snap)[1]
+    floor = plane.sum() + ground.paving_loads(snap)[1].sum()
+
+    def share(part, whole):
+        return float(part / whole) if whole > 0 else float('nan')
     return {'snapshot': snap_path, 'grain_shape': params.get('grain_shape', 'sphere'),
             'n_grains': int(params.get('n_grains', 0)), 'seed': params.get('seed'), 'time_s': snap['time'],
             'D_paving': paving['D'], 'D_with_plane': both['D'], 'D_change': both['D'] - paving['D'],
-            'plane_share_floor': share(plane, plane + paving_total),
+            'plane_share_floor': share(plane.sum(), floor),
             'plane_share_disc': share(both['p_disc_Pa'] - paving['p_disc_Pa'], both['p_disc_Pa']),
             'plane_share_annulus': share(both['p_ring_Pa'] - paving['p_ring_Pa'], both['p_ring_Pa']),
-            'n_plane_contacts': int(len(ground.plane_loads(snap)[1])),
-            'weight_N': float(pa.grain_masses(snap)[~snap['fixed']].sum() * snap['g']) if np.any(~snap['fixed']) else 0.0}
+            'n_plane_contacts': int(len(plane)),
+            'weight_N': float(pa.grain_masses(snap)[~snap['fixed']].sum() * snap['g'])}
 
 
 def summary(rows):

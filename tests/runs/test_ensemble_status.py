@@ -49,6 +49,10 @@ class TestStatus(unittest.TestCase):
     def test_progress_without_run_json(self):
         with tempfile.TemporaryDirectory() as d:
             self.assertIsNone(ensemble.progress_of(d))
+            for text in ('', 'time_s,grains,contacts,sweeps,residual,wall_s\n'):   # created, header not yet or only it
+                with open(os.path.join(d, 'progress.csv'), 'w') as f:
+                    f.write(text)
+                self.assertIsNone(ensemble.progress_of(d))
             with open(os.path.join(d, 'progress.csv'), 'w') as f:
                 f.write('time_s,grains,contacts,sweeps,residual,wall_s\n0.75,150,300,20,1e-3,12.0\n')
             self.assertEqual(ensemble.progress_of(d), {'time_s': 0.75, 'end_s': None, 'grains': 150, 'wall_s': 12.0})

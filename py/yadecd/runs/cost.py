@@ -14,6 +14,7 @@ reported.
 import csv
 import os
 import time
+import warnings
 
 import numpy as np
 
@@ -36,8 +37,11 @@ def append_segment(run_dir, t_start, wall_before, threads):
 
 
 def read_progress(path):
-    """``progress.csv`` as a dict of float arrays (time_s, grains, contacts, sweeps, residual, wall_s)."""
-    a = np.genfromtxt(path, delimiter=',', names=True, ndmin=1)
+    """``progress.csv`` as a dict of float arrays (time_s, grains, contacts, sweeps, residual, wall_s);
+    a line with the wrong number of fields (the last one, cut short by a full disk) is passed over."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')     # numpy warns of every line it passes over
+        a = np.genfromtxt(path, delimiter=',', names=True, ndmin=1, invalid_raise=False)
     return {k: np.asarray(a[k], dtype=float) for k in a.dtype.names}
 
 

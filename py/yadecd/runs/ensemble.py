@@ -27,6 +27,7 @@ import time
 
 from ..io import write_json_atomic
 from ..pile.protocol import DEFAULTS, feed_time
+from . import cost as runcost
 
 RATE_DEFAULT = DEFAULTS['rate']     # grains per second
 DT_DEFAULT = DEFAULTS['dt']         # s
@@ -294,23 +295,14 @@ def progress_of(run_dir):
     """Where an unfinished run stands, from its ``progress.csv`` and ``run.json``: dict ``time_s``,
     ``end_s`` (the end of its feed plus its relaxation; None without run.json), ``grains`` and
     ``wall_s`` (its wall time so far, over all segments); None before its first progress line."""
+    path = os.path.join(run_dir, 'progress.csv')
     try:
-        with open(os.path.join(run_dir, 'progress.csv')) as f:
-            lines = [ln.strip() for ln in f if ln.strip()]
-    except OSError:
+        prog = runcost.read_progress(path) if os.path.exists(path) else {}
+    except (ValueError, TypeError, IndexError):  # an empty file, or no header line yet
         return None
-    head, row = lines[0].split(',') if lines else [], None
-    for line in reversed(lines[1:]):      # the last complete line (a full disk may cut the last one short)
-        fields = line.split(',')
-        try:
-            row = dict(zip(head, map(float, fields))) if len(fields) == len(head) else None
-        except ValueError:
-            row = None
-        if row is not None and {'time_s', 'grains', 'wall_s'} <= set(row):
-            break
-        row = None
-    if row is None:
+    if not all(k in prog and prog[k].size for k in ('time_s', 'grains', 'wall_s')):
         return None
+    row = {k: float(prog[k][-1]) for k in ('time_s', 'grains', 'wall_s')}
     end = None
     try:
         with open(os.path.join(run_dir, 'run.json')) as f:
