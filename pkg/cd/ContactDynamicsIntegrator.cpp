@@ -214,6 +214,7 @@ cd::Params ContactDynamicsIntegrator::params() const
 	p.schedule          = sweepOrder;
 	p.slabs             = slabs;
 	p.slabsAcross       = slabsAcross;
+	p.slabsOwnBodies    = slabsOwnBodies;
 	p.momentum          = momentum;
 	p.sphereFastPath      = sphereFastPath;
 	p.recordResidual    = recordResidual;

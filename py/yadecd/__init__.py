@@ -19,7 +19,7 @@ __all__ = ['engines', 'integrator', 'solver_options', 'SOLVER_OPTIONS']
 #: each step is solved. The C++ class is the one definition of each (name, default, validation,
 #: docstring); :func:`solver_options` reads their defaults from it.
 SOLVER_OPTIONS = ('tolerance', 'maxIter', 'checkEvery', 'relaxation', 'momentum', 'schedule', 'slabs', 'slabsAcross',
-                  'sphereFastPath',
+                  'slabsOwnBodies', 'sphereFastPath',
                   'alertRatio', 'alertSpeedFactor', 'positionTolerance', 'maxProjectionIter', 'correctionMomentum',
                   'parallelMinContacts', 'warnUnconverged', 'recordResidual')
 

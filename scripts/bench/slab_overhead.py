@@ -5,7 +5,7 @@ slabs × columns (``--slabs 4x4``: four slabs cut into four columns each, ``slab
 and 2 threads.
 
     /usr/bin/python3 scripts/bench/slab_overhead.py STEP.cdp [--slabs 1,2,4,8,16,32,64,2x2,4x4,4x8,8x8] [--threads 1,2]
-        [--out docs/data/slab_overhead.csv] [--figure docs/figures/slab_overhead.png]
+        [--slabs-own-bodies] [--out docs/data/slab_overhead.csv] [--figure docs/figures/slab_overhead.png]
 
 The slab sweep is a domain decomposition with a sequential interface (docs/method.md): every
 slab is swept upwards on its own thread, then the contacts of the bodies that straddle a cut.
@@ -35,6 +35,9 @@ def main(argv=None):
                     help='comma-separated slab counts; NxM: N slabs cut into M columns each')
     ap.add_argument('--threads', default='1,2')
     ap.add_argument('--bench', default=os.path.join(REPO, 'build', 'cd_core_bench'))
+    ap.add_argument('--slabs-own-bodies', action='store_true',
+                    help='every body owned by the part holding most of its contacts (slabsOwnBodies): the interface '
+                         'is the contacts between two owners (docs/scale-out.md, "Bodies owned by parts")')
     ap.add_argument('--cores', default='1,2,4,8,16,32,64', help='core counts of the model')
     ap.add_argument('--barrier-us', type=float, default=3.0, help='the model\'s cost of one meeting of the threads [us]')
     ap.add_argument('--untimed', action='store_true',
@@ -62,6 +65,7 @@ def main(argv=None):
             for slabs, across in parse_parts(a.slabs, ap):
                 env = dict(os.environ, OMP_NUM_THREADS=str(threads))
                 proc = subprocess.run([a.bench, a.step, '--schedule', '5', '--slabs', str(slabs), '--slabs-across', str(across),
+                                       '--slabs-own-bodies', '1' if a.slabs_own_bodies else '0',
                                        '--k1', '10', '--k2', '40', '--repeat', '2', '--time-sweeps', '0' if a.untimed else '1',
                                        '--csv', out], capture_output=True, text=True, env=env)
                 if proc.returncode:

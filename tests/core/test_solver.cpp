@@ -173,18 +173,20 @@ void optionGrid(const std::string& name, const cd::SavedProblem& pb, const Expec
 {
 	std::vector<Vector3r> vRef;
 	Real                  vScale = 0;
-	for (const auto& [schedule, across] : std::vector<std::pair<int, int>> { { 1, 1 }, { 4, 1 }, { 5, 1 }, { 5, 3 } }) // 5, 3: slabs cut into three columns each
+	// {schedule, columns per slab, bodies owned by parts}; 5, 3: slabs cut into three columns each
+	for (const auto& [schedule, across, owned] : std::vector<std::tuple<int, int, bool>> { { 1, 1, false }, { 4, 1, false }, { 5, 1, false }, { 5, 3, false }, { 5, 1, true }, { 5, 3, true } })
 		for (int momentum : { 1, 0 })
 			for (int sphere : { 1, 0 }) {
 				cd::Params p   = pb.params;
 				p.schedule     = schedule;
 				p.slabsAcross  = across;
+				p.slabsOwnBodies = owned;
 				p.momentum     = momentum;
 				p.sphereFastPath = sphere;
 				p.relaxation   = 1;
 				p.tolerance    = e.gridTolerance;
 				p.maxIter      = 100000;
-				const std::string what = name + " [schedule " + std::to_string(schedule) + (across > 1 ? " x " + std::to_string(across) + " columns" : "") + (momentum ? ", momentum" : "") + (sphere ? ", sphere kernel" : ", general kernel") + "]";
+				const std::string what = name + " [schedule " + std::to_string(schedule) + (across > 1 ? " x " + std::to_string(across) + " columns" : "") + (owned ? ", bodies owned" : "") + (momentum ? ", momentum" : "") + (sphere ? ", sphere kernel" : ", general kernel") + "]";
 				cd::Solver s;
 				pb.load(s);
 				s.assemble(p);
@@ -292,11 +294,15 @@ void correctionCheck(const std::string& name, const cd::SavedProblem& pb)
 // slabs), with momentum in the solve and in the correction.
 void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 {
-	for (int variant : { 4, 5, 15, 25, 35 }) { // 15: slabs with the worklist; 25: eight slabs (the cuts' parallel stages); 35: 4 x 4 columns
+	// 15: slabs with the worklist; 25: eight slabs (the cuts' parallel stages); 35: 4 x 4 columns;
+	// 125, 135: 25 and 35 with bodies owned by parts
+	for (int variant : { 4, 5, 15, 25, 35, 125, 135 }) {
 		const int  schedule = variant % 10;
-		const bool worklist = variant / 10 == 1;
-		const int  slabs    = variant / 10 >= 2 ? (variant / 10 == 2 ? 8 : 4) : pb.params.slabs;
-		const int  across   = variant / 10 == 3 ? 4 : 1;
+		const int  kind     = variant / 10 % 10;
+		const bool owned    = variant >= 100;
+		const bool worklist = kind == 1;
+		const int  slabs    = kind >= 2 ? (kind == 2 ? 8 : 4) : pb.params.slabs;
+		const int  across   = kind == 3 ? 4 : 1;
 		std::vector<std::vector<Vector3r>> v, pv;
 		std::vector<Impulses> P;
 		std::vector<int> sweeps, corr;
@@ -306,6 +312,7 @@ void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 			p.worklist            = worklist;
 			p.slabs               = slabs;
 			p.slabsAcross         = across;
+			p.slabsOwnBodies      = owned;
 			p.correctionMomentum  = true;
 			p.parallelMinContacts = minContacts;
 			cd::Solver s;
@@ -324,7 +331,7 @@ void threadsCheck(const std::string& name, const cd::SavedProblem& pb)
 			pv.push_back(pvb);
 		}
 		check(sweeps[0] == sweeps[1] && corr[0] == corr[1] && P[0] == P[1] && v[0] == v[1] && pv[0] == pv[1],
-		      name + " [schedule " + std::to_string(schedule) + (worklist ? ", worklist" : "") + (variant / 10 == 2 ? ", 8 slabs" : "") + (variant / 10 == 3 ? ", 4 x 4 columns" : "") + "]: threaded and serial sweeps give the same step, bit for bit (" +
+		      name + " [schedule " + std::to_string(schedule) + (worklist ? ", worklist" : "") + (kind == 2 ? ", 8 slabs" : "") + (kind == 3 ? ", 4 x 4 columns" : "") + (owned ? ", bodies owned" : "") + "]: threaded and serial sweeps give the same step, bit for bit (" +
 		              std::to_string(sweeps[0]) + " sweeps)");
 	}
 }
@@ -429,46 +436,60 @@ void traceCheck(const std::string& name, const cd::SavedProblem& pb)
 // The schedules' invariant: the ranges of a parallel stage share no dynamic body (what lets it
 // run them at once; a serial stage, such as the slabs' colours too small for threads, may hold
 // ranges that do), and the ranges cover every contact once, for the colours, for the slabs at 2
-// to 64 slabs (the cut stages included) and for slabs cut into columns.
+// to 64 slabs (the cut stages included) and for slabs cut into columns, with the bodies divided
+// either way. With bodies owned by parts the interface is a subset of the other's (a contact
+// between bodies of two owners has a body touching two parts), so it is never larger.
 void scheduleCheck(const std::string& name, const cd::SavedProblem& pb)
 {
 	// {schedule, slabs, columns per slab}
 	for (const auto& [schedule, slabs, across] : std::vector<std::tuple<int, int, int>> {
-	             { 4, pb.params.slabs, 1 }, { 5, 2, 1 }, { 5, 4, 1 }, { 5, 8, 1 }, { 5, 64, 1 }, { 5, 2, 2 }, { 5, 4, 4 }, { 5, 8, 8 }, { 5, 2, 32 } }) {
-		cd::Params p  = pb.params;
-		p.schedule    = schedule;
-		p.slabs       = slabs;
-		p.slabsAcross = across;
-		p.maxIter     = 1;
-		p.parallelMinContacts = 0; // keep the schedule's own parallel flags
-		cd::Solver s;
-		pb.load(s);
-		s.assemble(p);
-		s.solve(p);
-		const cd::Schedule& o  = s.schedule();
-		const long          nc = long(s.contacts.size());
-		bool                ok = !o.bounds.empty() && o.bounds.front() == 0 && o.bounds.back() == nc;
-		for (size_t i = 0; i + 1 < o.bounds.size(); ++i)
-			ok = ok && o.bounds[i] <= o.bounds[i + 1];
-		int conflicts = 0, parallelStages = 0;
-		for (const auto& st : o.stages) {
-			ok = ok && st.begin <= st.end && st.end <= o.ranges();
-			if (!st.parallel) continue;
-			++parallelStages;
-			std::map<int, int> owner; // dynamic body -> range
-			for (int i = st.begin; i < st.end; ++i)
-				for (long k = o.bounds[i]; k < o.bounds[i + 1]; ++k)
-					for (int b : { s.contacts.info[k].b1, s.contacts.info[k].b2 }) {
-						if (!s.records[b].dynamic) continue;
-						const auto it = owner.find(b);
-						if (it == owner.end()) owner[b] = i;
-						else if (it->second != i) ++conflicts;
-					}
+	             { 4, pb.params.slabs, 1 }, { 5, 2, 1 }, { 5, 4, 1 }, { 5, 8, 1 }, { 5, 64, 1 }, { 5, 2, 2 }, { 5, 4, 4 }, { 5, 8, 8 }, { 5, 2, 32 } })
+		for (bool owned : { false, true }) {
+			if (owned && schedule != 5) continue;
+			cd::Params p  = pb.params;
+			p.schedule    = schedule;
+			p.slabs       = slabs;
+			p.slabsAcross = across;
+			p.slabsOwnBodies = owned;
+			p.maxIter     = 1;
+			p.parallelMinContacts = 0; // keep the schedule's own parallel flags
+			cd::Solver s;
+			pb.load(s);
+			s.assemble(p);
+			s.solve(p);
+			const cd::Schedule& o  = s.schedule();
+			const long          nc = long(s.contacts.size());
+			bool                ok = !o.bounds.empty() && o.bounds.front() == 0 && o.bounds.back() == nc;
+			for (size_t i = 0; i + 1 < o.bounds.size(); ++i)
+				ok = ok && o.bounds[i] <= o.bounds[i + 1];
+			int conflicts = 0, parallelStages = 0;
+			for (const auto& st : o.stages) {
+				ok = ok && st.begin <= st.end && st.end <= o.ranges();
+				if (!st.parallel) continue;
+				++parallelStages;
+				std::map<int, int> owner; // dynamic body -> range
+				for (int i = st.begin; i < st.end; ++i)
+					for (long k = o.bounds[i]; k < o.bounds[i + 1]; ++k)
+						for (int b : { s.contacts.info[k].b1, s.contacts.info[k].b2 }) {
+							if (!s.records[b].dynamic) continue;
+							const auto it = owner.find(b);
+							if (it == owner.end()) owner[b] = i;
+							else if (it->second != i) ++conflicts;
+						}
+			}
+			ok = ok && (nc < 1000 || slabs * across > 4 || parallelStages > 0); // a step this large in a few parts has stages worth threads: the check is not empty
+			const std::string what = name + " [schedule " + std::to_string(p.schedule) + (p.schedule == 5 ? ", " + std::to_string(p.slabs) + " slabs x " + std::to_string(p.slabsAcross) : "") + (owned ? ", bodies owned" : "") + "]";
+			check(ok && conflicts == 0, what + ": the ranges cover the contacts and those of a parallel stage share no dynamic body (" + std::to_string(conflicts) + " shared)");
+			if (!owned) continue;
+			cd::Params touched     = p;
+			touched.slabsOwnBodies = false;
+			cd::Solver t;
+			pb.load(t);
+			t.assemble(touched);
+			t.solve(touched);
+			check(o.nInterface <= t.schedule().nInterface,
+			      what + ": the interface is no larger than with the parts touched (" + std::to_string(o.nInterface) + " against " + std::to_string(t.schedule().nInterface) + " contacts)");
 		}
-		ok = ok && (nc < 1000 || slabs * across > 4 || parallelStages > 0); // a step this large in a few parts has stages worth threads: the check is not empty
-		check(ok && conflicts == 0, name + " [schedule " + std::to_string(p.schedule) + (p.schedule == 5 ? ", " + std::to_string(p.slabs) + " slabs x " + std::to_string(p.slabsAcross) : "") +
-		                                "]: the ranges cover the contacts and those of a parallel stage share no dynamic body (" + std::to_string(conflicts) + " shared)");
-	}
 }
 
 void roundTrip(const std::string& name, const std::string& path, const cd::SavedProblem& pb)
@@ -480,15 +501,17 @@ void roundTrip(const std::string& name, const std::string& path, const cd::Saved
 	std::ostringstream o;
 	cd::writeProblem(o, s, pb.params);
 	check(original.compare(0, o.str().size(), o.str()) == 0, name + ": written back, the same text");
-	for (const auto& [across, momentum] : std::vector<std::pair<int, bool>> { { 1, true }, { 3, false }, { 3, true } }) { // the optional trailing fields
+	// the optional trailing fields, each alone and after the others
+	for (const auto& [across, momentum, owned] : std::vector<std::tuple<int, bool, bool>> { { 1, true, false }, { 3, false, false }, { 3, true, false }, { 1, false, true }, { 2, true, true } }) {
 		cd::Params p         = pb.params;
 		p.slabsAcross        = across;
 		p.correctionMomentum = momentum;
+		p.slabsOwnBodies     = owned;
 		std::stringstream io;
 		cd::writeProblem(io, s, p);
 		const cd::SavedProblem back = cd::readProblem(io);
-		check(back.params.slabsAcross == across && back.params.correctionMomentum == momentum,
-		      name + ": slabsAcross " + std::to_string(across) + " and correctionMomentum " + std::to_string(momentum) + " read back");
+		check(back.params.slabsAcross == across && back.params.correctionMomentum == momentum && back.params.slabsOwnBodies == owned,
+		      name + ": slabsAcross " + std::to_string(across) + ", correctionMomentum " + std::to_string(momentum) + " and slabsOwnBodies " + std::to_string(owned) + " read back");
 	}
 }
 

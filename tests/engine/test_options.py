@@ -108,7 +108,8 @@ class TestSchedule(unittest.TestCase):
         # a resume from a checkpoint's archive sets protocol.UNSAVED_OPTIONS again from run.json:
         # they must be exactly the pile's solver options that O.save / O.load do not keep
         changed = dict(tolerance=2e-4, max_iter=1234, relaxation=0.9, momentum=False, correction_momentum=True,
-                       schedule='colours', slabs=3, slabs_across=2, parallel_min_contacts=7)
+                       schedule='colours', slabs=3, slabs_across=2, slabs_own_bodies=True,
+                       parallel_min_contacts=7)
         self.assertEqual(set(changed), set(protocol.SOLVER_OPTIONS), 'a new pile solver option: give it a changed value here')
         with tempfile.TemporaryDirectory() as d:
             scenes.column(3, **protocol.engine_options(changed))

@@ -133,10 +133,11 @@ class TestResume(unittest.TestCase):
         self.assertEqual(faults.compare_states(faults.final_state(run_dir), self.ref), '')
 
     def test_archive_resume_keeps_the_columns(self):
-        """slabs_across (columns: an engine attribute YADE's archive does not hold) is restored
-        from run.json on a resume: the resumed run ends bit for bit where the same run without a
-        stop ends, and that end is not the two slabs' (the columns are another order)."""
-        opts = dict(TINY, slabs=2, slabs_across=2)
+        """slabs_across and slabs_own_bodies (columns, bodies owned by them: engine attributes
+        YADE's archive does not hold) are restored from run.json on a resume: the resumed run ends
+        bit for bit where the same run without a stop ends, and that end is not the two slabs'
+        (the columns are another order)."""
+        opts = dict(TINY, slabs=2, slabs_across=2, slabs_own_bodies=True)
         straight = os.path.join(self.tmp, 'columns_straight')
         pile.run(straight, **opts, **QUIET)
         run_dir = os.path.join(self.tmp, 'columns')
@@ -145,6 +146,7 @@ class TestResume(unittest.TestCase):
         pile.run(run_dir, resume=True, log=lines.append)
         self.assertIn('bit-identical continuation', lines[0])
         self.assertEqual(O.engines[-1].slabsAcross, 2)
+        self.assertTrue(O.engines[-1].slabsOwnBodies)
         self.assertEqual(faults.compare_states(faults.final_state(run_dir), faults.final_state(straight)), '')
         self.assertNotEqual(faults.compare_states(faults.final_state(straight), self.ref), '')
 

@@ -7,7 +7,7 @@
 //     set-up, warm start and residual checks cancel (as scripts/bench/solver_bench.py does
 //     inside YADE).
 //
-//   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--momentum 0|1] [--sphere 0|1]
+//   build/cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--slabs-own-bodies 0|1] [--momentum 0|1] [--sphere 0|1]
 //                            [--tolerance T] [--time-sweeps 0|1] [--parallel-min-contacts N]
 //                            [--k1 20] [--k2 120] [--repeat 3] [--csv OUT.csv]
 //                            [--history OUT.csv] [--worklist 0|1] [--worklist-threshold ETA]
@@ -149,7 +149,7 @@ double bestForcedSolve(const cd::SavedProblem& pb, cd::Params p, int sweeps, int
 
 [[noreturn]] void usage(const char* what)
 {
-	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N] [--check-every N]\n", what);
+	std::fprintf(stderr, "cd_core_bench: %s\nusage: cd_core_bench FILE [--schedule 1|4|5] [--slabs N] [--slabs-across N] [--slabs-own-bodies 0|1] [--momentum 0|1] [--sphere 0|1] [--tolerance T] [--time-sweeps 0|1] [--k1 K] [--k2 K] [--repeat R] [--csv OUT] [--history OUT] [--worklist 0|1] [--worklist-threshold ETA] [--worklist-full-sweeps N] [--trace PREFIX] [--max-iter N] [--bodies-in-sweep-order 0|1] [--stall-window N] [--check-every N]\n", what);
 	std::exit(2);
 }
 
@@ -162,7 +162,7 @@ int main(int argc, char** argv)
 	int         worklist = -1, workFull = -1, maxIter = -1, bodyOrder = -1, stallWindow = -1, checkEvery = -1;
 	double      workThreshold = -1;
 	int         k1 = 20, k2 = 120, repeat = 3;
-	int         schedule = -1, slabs = -1, across = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
+	int         schedule = -1, slabs = -1, across = -1, owned = -1, momentum = -1, sphere = -1, timeSweeps = 1, corrMomentum = -1;
 	double      tolerance = -1;
 	long        parallelMin = -1;
 	for (int i = 2; i < argc; ++i) {
@@ -172,6 +172,7 @@ int main(int argc, char** argv)
 		if (a == "--schedule") schedule = std::stoi(v);
 		else if (a == "--slabs") slabs = std::stoi(v);
 		else if (a == "--slabs-across") across = std::stoi(v);
+		else if (a == "--slabs-own-bodies") owned = std::stoi(v);
 		else if (a == "--momentum") momentum = std::stoi(v);
 		else if (a == "--sphere") sphere = std::stoi(v);
 		else if (a == "--tolerance") tolerance = std::stod(v);
@@ -200,6 +201,7 @@ int main(int argc, char** argv)
 		if (schedule >= 0) p.schedule = schedule;
 		if (slabs >= 0) p.slabs = slabs;
 		if (across >= 0) p.slabsAcross = across;
+		if (owned >= 0) p.slabsOwnBodies = owned;
 		if (momentum >= 0) p.momentum = momentum;
 		if (sphere >= 0) p.sphereFastPath = sphere;
 		if (tolerance > 0) p.tolerance = tolerance;
@@ -249,12 +251,12 @@ int main(int argc, char** argv)
 			std::ifstream exists(csv);
 			const bool    header = !exists.good();
 			std::ofstream out(csv, std::ios::app);
-			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,wide,stages,slabs_across,residual_checks,check_every\n";
+			if (header) out << "file,bodies,contacts,schedule,slabs,momentum,sphere,threads,tolerance,sweeps,residual,correction_sweeps,interface,assemble_ms,solve_ms,correct_ms,ns_per_contact_sweep,worklist,worklist_threshold,full_sweeps,contact_updates,bodies_in_sweep_order,wide,stages,slabs_across,residual_checks,check_every,slabs_own_bodies\n";
 			out << file << ',' << pb.bodies.size() << ',' << step.contacts << ',' << p.schedule << ',' << p.slabs << ',' << int(p.momentum) << ','
 			    << int(p.sphereFastPath) << ',' << threads << ',' << double(p.tolerance) << ',' << step.sweeps << ',' << step.residual << ','
 			    << step.correctionSweeps << ',' << step.interface << ',' << step.assemble * 1e3 << ','
 			    << step.solve * 1e3 << ',' << step.correct * 1e3 << ',' << ns << ',' << int(p.worklist) << ',' << double(p.worklistThreshold) << ','
-			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.wide << ',' << step.stages << ',' << p.slabsAcross << ',' << step.residualChecks << ',' << p.checkEvery << '\n';
+			    << step.fullSweeps << ',' << step.updates << ',' << int(p.bodiesInSweepOrder) << ',' << step.wide << ',' << step.stages << ',' << p.slabsAcross << ',' << step.residualChecks << ',' << p.checkEvery << ',' << int(p.slabsOwnBodies) << '\n';
 		}
 	} catch (const std::exception& e) {
 		std::fprintf(stderr, "cd_core_bench: %s\n", e.what());

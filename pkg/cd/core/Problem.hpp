@@ -128,6 +128,7 @@ namespace cd {
 		int      schedule = 1;         // Schedule::Kind
 		int      slabs = 2;
 		int      slabsAcross = 1;      // columns per slab (Schedule::Slabs; 1: slabs only)
+		bool     slabsOwnBodies = false; // Schedule::Slabs: every body owned by one part (the interface: contacts between two owners)
 		bool     momentum = true;
 		bool     sphereFastPath = true;
 		bool     recordResidual = false;

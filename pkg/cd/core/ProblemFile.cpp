@@ -81,8 +81,13 @@ namespace cd {
 		put(o, p.up);
 		o << ' ' << p.tolerance << ' ' << p.maxIter << ' ' << p.checkEvery << ' ' << p.relaxation << ' ' << p.schedule << ' ' << p.slabs << ' '
 		  << int(p.momentum) << ' ' << int(p.sphereFastPath) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter
-		  << (p.correctionMomentum || p.slabsAcross != 1 ? (p.correctionMomentum ? " 1" : " 0") : ""); // optional trailing fields: absent means 0
-		if (p.slabsAcross != 1) o << ' ' << p.slabsAcross;                                                   // ... and 1
+		  ;
+		// optional trailing fields, written up to the last that departs from its default
+		// (absent: correctionMomentum 0, slabsAcross 1, slabsOwnBodies 0)
+		const int trailing = p.slabsOwnBodies ? 3 : p.slabsAcross != 1 ? 2 : p.correctionMomentum ? 1 : 0;
+		if (trailing >= 1) o << ' ' << int(p.correctionMomentum);
+		if (trailing >= 2) o << ' ' << p.slabsAcross;
+		if (trailing >= 3) o << ' ' << int(p.slabsOwnBodies);
 		o << '\n';
 		o << "bodies " << solver.bodies.size() << '\n';
 		for (size_t id = 0; id < solver.bodies.size(); ++id) {
@@ -149,6 +154,8 @@ namespace cd {
 			p.correctionMomentum = l.more() ? l.get<int>() != 0 : false;
 			// ... and before the slabs had columns: slabs only
 			p.slabsAcross = l.more() ? l.get<int>() : 1;
+			// ... and before bodies could be owned by parts: a body's contacts decide nothing
+			p.slabsOwnBodies = l.more() ? l.get<int>() != 0 : false;
 			l.end();
 		}
 		LineReader hb = next("the body count");

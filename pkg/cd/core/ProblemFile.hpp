@@ -8,8 +8,8 @@
 //
 //   cdproblem 1
 //   params h ux uy uz tolerance maxIter checkEvery relaxation schedule slabs momentum sphereFastPath positionTolerance maxProjectionIter
-//          [1 [A]]   (correctionMomentum, absent: 0, as in files written before it existed; then
-//                      slabsAcross, absent: 1)
+//          [1 [A [1]]]   (correctionMomentum, absent: 0, as in files written before it existed;
+//                          then slabsAcross, absent: 1; then slabsOwnBodies, absent: 0)
 //   bodies N
 //   body id dynamic isoInvM isoInvI v(3) w(3) invM(3) invI(9, row-major) vi(3) wi(3)        (N lines)
 //   contacts M

@@ -10,14 +10,14 @@
 namespace yade {
 namespace cd {
 
-	void Schedule::build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, const Vector3r& up)
+	void Schedule::build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, bool ownBodies, const Vector3r& up)
 	{
 		nColours = nInterface = nWide = 0;
 		sumPerContact         = false;
 		switch (kind) {
 			case Height: byHeight(long(set.size())); break;
 			case Colours: colours(set, records); break;
-			case Slabs: slabs(set, records, ns, across, up); break;
+			case Slabs: slabs(set, records, ns, across, ownBodies, up); break;
 			default: throw std::invalid_argument("cd::Schedule: unknown kind " + std::to_string(kind) + " (1 height, 4 colours, 5 slabs).");
 		}
 	}
@@ -135,6 +135,67 @@ namespace cd {
 			}
 			return part;
 		}
+
+		// The part that owns each dynamic body: the one that holds most of its contacts, the lowest
+		// on a tie (-1 for obstacles and bodies without contacts). The parts of each body's
+		// contacts are listed body by body (a counting sort), then sorted and counted.
+		std::vector<int> ownerOfBodies(const ContactSet& set, const std::vector<BodyRecord>& records, const std::vector<int>& part)
+		{
+			const long       nc = long(set.size());
+			const size_t     nb = records.size();
+			std::vector<int> start(nb + 1, 0), owner(nb, -1);
+			for (long k = 0; k < nc; ++k)
+				for (int b : { set.info[k].b1, set.info[k].b2 })
+					if (records[b].dynamic) ++start[b + 1];
+			for (size_t b = 0; b < nb; ++b)
+				start[b + 1] += start[b];
+			std::vector<int> fill(start.begin(), start.end() - 1), parts(start[nb]);
+			for (long k = 0; k < nc; ++k)
+				for (int b : { set.info[k].b1, set.info[k].b2 })
+					if (records[b].dynamic) parts[fill[b]++] = part[k];
+			for (size_t b = 0; b < nb; ++b) {
+				const auto first = parts.begin() + start[b], last = parts.begin() + start[b + 1];
+				std::sort(first, last);
+				long most = 0;
+				for (auto run = first; run != last;) {
+					const auto end = std::upper_bound(run, last, *run);
+					if (end - run > most) most = end - run, owner[b] = *run; // ascending: the lowest part wins a tie
+					run = end;
+				}
+			}
+			return owner;
+		}
+
+		// Each contact's key, the set of parts its sweep must not run beside (a bit per part):
+		// with parts touched, its own part and every part its dynamic bodies touch; with bodies
+		// owned, the owners of its dynamic bodies (its own part if it has none: nothing writes
+		// it). A contact whose key is one part is inner, swept in that part.
+		std::vector<uint64_t> contactKeys(const ContactSet& set, const std::vector<BodyRecord>& records, const std::vector<int>& part, bool ownBodies)
+		{
+			const long            nc = long(set.size());
+			std::vector<uint64_t> key(nc);
+			if (ownBodies) {
+				const std::vector<int> owner = ownerOfBodies(set, records, part);
+				for (long k = 0; k < nc; ++k) {
+					const int o1 = records[set.info[k].b1].dynamic ? owner[set.info[k].b1] : -1;
+					const int o2 = records[set.info[k].b2].dynamic ? owner[set.info[k].b2] : -1;
+					key[k]       = (o1 >= 0 ? uint64_t(1) << o1 : 0) | (o2 >= 0 ? uint64_t(1) << o2 : 0);
+					if (!key[k]) key[k] = uint64_t(1) << part[k];
+				}
+				return key;
+			}
+			std::vector<uint64_t> touched(records.size(), 0);
+			for (long k = 0; k < nc; ++k) {
+				const int b1 = set.info[k].b1, b2 = set.info[k].b2;
+				if (records[b1].dynamic) touched[b1] |= uint64_t(1) << part[k];
+				if (records[b2].dynamic) touched[b2] |= uint64_t(1) << part[k];
+			}
+			for (long k = 0; k < nc; ++k) {
+				const int b1 = set.info[k].b1, b2 = set.info[k].b2;
+				key[k]       = (uint64_t(1) << part[k]) | (records[b1].dynamic ? touched[b1] : 0) | (records[b2].dynamic ? touched[b2] : 0);
+			}
+			return key;
+		}
 	} // namespace
 
 	// Slabs: the contact points cut, across the wider horizontal extent, into ns slabs of equal
@@ -153,24 +214,22 @@ namespace cd {
 	// Height order is kept within every group. With slabs only (across = 1) the groups of two
 	// parts are the cuts, and their colours the even cuts and the odd ones; with two slabs there
 	// is one cut and nothing spans more: the order is the same as with a single serial interface.
-	void Schedule::slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, const Vector3r& up)
+	// With ownBodies every dynamic body belongs to one part instead, the one holding most of its
+	// contacts; a contact is inner when its dynamic bodies have one owner, and the interface is
+	// the contacts between bodies of two parts, grouped by that pair (disjoint pairs share no
+	// body): fewer contacts than the bodies straddling a cut have, and no group of three parts.
+	void Schedule::slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, bool ownBodies, const Vector3r& up)
 	{
 		if (ns < 1 || across < 1 || ns * across > 64)
 			throw std::invalid_argument("cd::Schedule: slabs=" + std::to_string(ns) + ", slabsAcross=" + std::to_string(across)
 			                            + ": both must be at least 1 and their product (the parts) at most 64.");
 		const long             nc     = long(set.size());
 		const int              nParts = ns * across;
-		const std::vector<int> part   = cutIntoParts(set, ns, across, up);
-		std::vector<uint64_t> touched(records.size(), 0), key(nc);
-		for (long k = 0; k < nc; ++k) {
-			const int b1 = set.info[k].b1, b2 = set.info[k].b2;
-			if (records[b1].dynamic) touched[b1] |= uint64_t(1) << part[k];
-			if (records[b2].dynamic) touched[b2] |= uint64_t(1) << part[k];
-		}
-		for (long k = 0; k < nc; ++k) {
-			const int b1 = set.info[k].b1, b2 = set.info[k].b2;
-			key[k]       = (uint64_t(1) << part[k]) | (records[b1].dynamic ? touched[b1] : 0) | (records[b2].dynamic ? touched[b2] : 0);
-		}
+		const std::vector<int>      part   = cutIntoParts(set, ns, across, up);
+		const std::vector<uint64_t> key    = contactKeys(set, records, part, ownBodies);
+		std::vector<int>            home(nc); // the part an inner contact is swept in, else -1
+		for (long k = 0; k < nc; ++k)
+			home[k] = __builtin_popcountll(key[k]) == 1 ? __builtin_ctzll(key[k]) : -1;
 		// the interface groups: the distinct keys of more than one part, those of two parts first,
 		// each class by its lowest part, then by key
 		auto before = [](uint64_t a, uint64_t b) {
@@ -181,7 +240,7 @@ namespace cd {
 		};
 		std::vector<uint64_t> keys;
 		for (long k = 0; k < nc; ++k)
-			if (key[k] != uint64_t(1) << part[k]) keys.push_back(key[k]);
+			if (home[k] < 0) keys.push_back(key[k]);
 		std::sort(keys.begin(), keys.end(), before);
 		keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
 		// greedy colouring, each group (the pairs first, then the wide ones) into the first colour
@@ -208,8 +267,8 @@ namespace cd {
 		std::vector<long> partCount(nParts, 0);
 		nWide = 0;
 		for (long k = 0; k < nc; ++k) {
-			if (key[k] == uint64_t(1) << part[k]) {
-				++partCount[part[k]];
+			if (home[k] >= 0) {
+				++partCount[home[k]];
 				continue;
 			}
 			keyOf[k] = int(std::lower_bound(keys.begin(), keys.end(), key[k], before) - keys.begin());
@@ -248,7 +307,7 @@ namespace cd {
 			bounds[g + 1] = bounds[g] + count[g];
 		std::vector<long> next(bounds.begin(), bounds.end() - 1), order(nc);
 		for (long k = 0; k < nc; ++k)
-			order[next[keyOf[k] < 0 ? part[k] : keyGroup[keyOf[k]]]++] = k;
+			order[next[keyOf[k] < 0 ? home[k] : keyGroup[keyOf[k]]]++] = k;
 		set.permute(order);
 		nInterface = int(nc - bounds[nParts]);
 		stages.assign(1, Stage { 0, nParts, nParts > 1 && bounds[nParts] >= minParallel });

@@ -22,7 +22,11 @@
 //                bodies touch; the groups of two parts coloured so that a colour's groups share no
 //                part (with slabs only: the even cuts, then the odd ones), one parallel stage per
 //                colour, the groups touching three parts or more coloured after them into the
-//                same colours where they fit.
+//                same colours where they fit. With ownBodies, every dynamic body is owned by
+//                one part instead (the one holding most of its contacts): a part's range holds
+//                the contacts between its own bodies (or with obstacles), and the interface the
+//                contacts between bodies of two parts, grouped by that pair: a smaller
+//                interface, and no groups of three parts (docs/scale-out.md).
 // Retired (measured worse, docs/results.md): 0 by ids, 2 alternating up and down, 3 downwards.
 #pragma once
 
@@ -56,8 +60,9 @@ namespace cd {
 		}
 
 		/*! Build the schedule of the given kind, permuting the set's contacts into its order
-		 *  (slabs, across: the parts of Slabs; ignored by the other kinds). */
-		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, int across, const Vector3r& up);
+		 *  (slabs, across, ownBodies: the parts of Slabs and how bodies are assigned to them;
+		 *  ignored by the other kinds). */
+		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, int across, bool ownBodies, const Vector3r& up);
 
 		/*! Call f(range, begin, end) for every range, stage by stage (backwards: stages in reverse
 		 *  order, and f is told to walk its range backwards), the ranges of a parallel stage on
@@ -92,7 +97,7 @@ namespace cd {
 	private:
 		void byHeight(long nc);
 		void colours(ContactSet& set, const std::vector<BodyRecord>& records);
-		void slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, const Vector3r& up);
+		void slabs(ContactSet& set, const std::vector<BodyRecord>& records, int ns, int across, bool ownBodies, const Vector3r& up);
 	};
 
 } // namespace cd

@@ -344,12 +344,20 @@ namespace cd {
 
 	// Relative residual: sqrt(Σ|e_α|²)/‖q‖, e_α the natural-map residual in velocity units
 	// (ρ_α = 1/W̃_NN,α for the law's own block A·W); counts sticking and sliding contacts.
-	Real Solver::residual(SolveStats& stats) const
+	// The contacts' terms are evaluated on the sweep's threads (they only read), then summed on
+	// the calling thread in contact order: the same sum, bit for bit, on any thread count (on one
+	// thread, checks were 10–16 % of a fed full-size step's solve on two: docs/performance.md).
+	Real Solver::residual(SolveStats& stats)
 	{
+		const long nc = long(contacts.size());
+		residual2.resize(size_t(nc));
+#pragma omp parallel for schedule(static) if (sweepThreads)
+		for (long k = 0; k < nc; ++k)
+			residual2[size_t(k)] = contactResidual2(k);
 		Real sum        = 0;
 		stats.nSticking = stats.nSliding = 0;
-		for (size_t k = 0; k < contacts.size(); ++k) {
-			sum += contactResidual2(long(k));
+		for (long k = 0; k < nc; ++k) {
+			sum += residual2[size_t(k)];
 			if (contacts.state[k].status == int(ContactStatus::Sticking)) ++stats.nSticking;
 			if (contacts.state[k].status == int(ContactStatus::Sliding)) ++stats.nSliding;
 		}
@@ -395,14 +403,14 @@ namespace cd {
 		for (size_t k = 0; k < contacts.size(); ++k)
 			applyImpulse(contacts.info[k], contacts.state[k].r); // warm start, in height order
 		if (contacts.size() == 0) {
-			order.build(Schedule::Height, contacts, records, p.slabs, p.slabsAcross, p.up);
+			order.build(Schedule::Height, contacts, records, p.slabs, p.slabsAcross, p.slabsOwnBodies, p.up);
 			return stats;
 		}
 		stats.converged  = false;
 		const Real scale = qNorm > 0 ? qNorm : Real(1);
 		Real       omega = p.relaxation, bestChange = std::numeric_limits<Real>::infinity();
 		int        stalled = 0;
-		order.build(p.schedule, contacts, records, p.slabs, p.slabsAcross, p.up);
+		order.build(p.schedule, contacts, records, p.slabs, p.slabsAcross, p.slabsOwnBodies, p.up);
 		// A sweep opens a parallel region per stage: on small problems two threads gain nothing
 		// and, when another process takes a core, their spinning barriers cost 15x
 		// (docs/performance.md, "Two threads beside another process").

@@ -100,7 +100,8 @@ namespace cd {
 		void     startMomentum();
 		void     extrapolate(Real beta);
 		void     extrapolateRange(long begin, long end, Real beta);
-		Real     residual(SolveStats& stats) const;
+		Real     residual(SolveStats& stats);
+		std::vector<Real> residual2; // residual(): every contact's |e|², filled in parallel, summed in contact order
 		Vector3r localPseudoVelocity(const ContactInfo& c) const;
 		void     applyPseudoImpulse(const ContactInfo& c, Real dP);
 		Real     correctionRange(long begin, long end, bool forward, bool complementarity);

@@ -16,11 +16,12 @@ from .grains import SHAPES
 #: (:data:`SOLVER_DEPARTURES`).
 SOLVER_OPTIONS = {'tolerance': 'tolerance', 'max_iter': 'maxIter', 'relaxation': 'relaxation', 'momentum': 'momentum',
                   'correction_momentum': 'correctionMomentum', 'schedule': 'schedule', 'slabs': 'slabs',
-                  'slabs_across': 'slabsAcross', 'parallel_min_contacts': 'parallelMinContacts'}
+                  'slabs_across': 'slabsAcross', 'slabs_own_bodies': 'slabsOwnBodies',
+                  'parallel_min_contacts': 'parallelMinContacts'}
 
 #: The solver options that YADE's archive does not keep (``Attr::noSave``): a resume from a
 #: checkpoint's scene sets them again from the run's parameters.
-UNSAVED_OPTIONS = ('correction_momentum', 'parallel_min_contacts', 'slabs_across')
+UNSAVED_OPTIONS = ('correction_momentum', 'parallel_min_contacts', 'slabs_across', 'slabs_own_bodies')
 
 #: Where the pile departs from the engine's defaults (why: docs/pile.md, "Solver settings").
 SOLVER_DEPARTURES = dict(
@@ -142,7 +143,8 @@ RESUME_MAY_CHANGE = ('stop_time', 'checkpoint_every', 'vtk', 'parallel_min_conta
 # what a branch (:func:`branch`) may change besides: how precisely each step is solved, not the
 # pile's physics or protocol (grains, feed, time step, friction)
 # (and the decomposition of the sweep: another order of the same Gauss–Seidel, for another machine)
-BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_momentum', 'slabs', 'slabs_across')
+BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_momentum', 'slabs', 'slabs_across',
+                                         'slabs_own_bodies')
 
 
 def epoch_list(epochs):

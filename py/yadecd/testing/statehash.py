@@ -72,6 +72,11 @@ _case('pile60_corrmom', None, 1500, correctionMomentum=True)
 _case('fcc1000_columns', lambda **o: scenes.fcc_block(1000, **o), 5, schedule='slabs', slabs=2, slabsAcross=2)
 _case('loose300_columns', lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
       schedule='slabs', slabs=2, slabsAcross=3)
+# bodies owned by parts (slabsOwnBodies, opt-in): the fed pile in two slabs, the loose packing
+# with landings in 2 x 3 columns
+_case('pile60_owned', None, 1500, schedule='slabs', slabs=2, slabsOwnBodies=True)
+_case('loose300_columns_owned', lambda **o: scenes.random_loose_packing(n=300, box=0.08, seed=5, **o), 600,
+      schedule='slabs', slabs=2, slabsAcross=3, slabsOwnBodies=True)
 
 
 def state_digest():
@@ -89,11 +94,12 @@ def state_digest():
 def run_case(name):
     """Build, run and hash one case; returns (digest, steps run, contacts at the end)."""
     build, options, steps = CASES[name]
-    if build is None:      # the fed pile: the protocol itself, 60 grains, 0.3 s
+    if build is None:      # the fed pile: the protocol itself, 60 grains, 0.3 s, the case's options by their pile names
         from .. import pile
+        from ..pile.protocol import SOLVER_OPTIONS
+        solver = {key: options[attr] for key, attr in SOLVER_OPTIONS.items() if attr in options}
         with tempfile.TemporaryDirectory() as tmp:
-            pile.run(os.path.join(tmp, 'run'), n_grains=60, relax=0.0, seed=7, snap_every=1e9, log=lambda s: None,
-                     correction_momentum=options['correctionMomentum'], parallel_min_contacts=0)
+            pile.run(os.path.join(tmp, 'run'), n_grains=60, relax=0.0, seed=7, snap_every=1e9, log=lambda s: None, **solver)
     else:
         build()
         cd = integrator()
