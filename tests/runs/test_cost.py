@@ -78,5 +78,52 @@ class TestSegmentLog(unittest.TestCase):
             self.assertTrue(segs[0]['host'] and segs[0]['cpu'])
 
 
+class TestRemainingWall(unittest.TestCase):
+    """remaining_wall: the wall time a run still needs, on records with a known cost law."""
+    A, BETA = 50.0, 1.5          # cost per simulated second c(t) = A t^BETA [s/s]
+
+    def record(self, t_end=6.0, pause=None):
+        """Progress lines every 0.05 s of simulated time to t_end, the wall time the integral of
+        c; ``pause``: (t, seconds) added to the wall time from t on (a stopped or slowed segment)."""
+        t = np.round(np.arange(1, int(round(t_end / 0.05)) + 1) * 0.05, 9)
+        w = self.A * t ** (self.BETA + 1) / (self.BETA + 1)
+        if pause:
+            w = w + np.where(t >= pause[0], pause[1], 0.0)
+        return {'time_s': t, 'wall_s': w}
+
+    def exact(self, now, feed_end, end):
+        """The rest of the feed at c(t), the relaxation at the feed's last rate."""
+        a, b = self.A, self.BETA
+        return a / (b + 1) * (feed_end ** (b + 1) - now ** (b + 1)) + a * feed_end ** b * (end - feed_end)
+
+    def test_power_law_feed(self):
+        est = runcost.remaining_wall(self.record(), end_s=9.0, feed_end_s=8.0)
+        self.assertAlmostEqual(est / self.exact(6.0, 8.0, 9.0), 1.0, delta=5e-4)
+
+    def test_one_window_with_a_pause_moves_it_little(self):
+        # 2000 s of wall time in one interval of the second half (a run stopped with SIGSTOP, or
+        # a host shared with another run): a least-squares fit of the rates would be 73 % off
+        est = runcost.remaining_wall(self.record(pause=(4.6, 2000.0)), end_s=9.0, feed_end_s=8.0)
+        self.assertAlmostEqual(est / self.exact(6.0, 8.0, 9.0), 1.0, delta=5e-3)
+
+    def test_relaxing_at_a_constant_rate(self):
+        t = np.round(np.arange(1, 201) * 0.05, 9)           # to 10 s, past the feed's end at 8 s
+        w = 300.0 * t
+        est = runcost.remaining_wall({'time_s': t, 'wall_s': w}, end_s=11.0, feed_end_s=8.0)
+        self.assertAlmostEqual(est, 300.0 * 1.0, delta=1e-6)
+
+    def test_no_estimate_without_a_record_or_an_end(self):
+        rec = self.record()
+        self.assertIsNone(runcost.remaining_wall(rec, end_s=None, feed_end_s=None))
+        self.assertIsNone(runcost.remaining_wall({'time_s': np.array([0.5]), 'wall_s': np.array([3.0])}, 9.0, 8.0))
+        # a record that starts late (resumed from a carried checkpoint without its early lines)
+        late = {k: v[rec['time_s'] > 4.0] for k, v in rec.items()}
+        self.assertIsNone(runcost.remaining_wall(late, 9.0, 8.0))
+        # a record with a gap over most of its second half: too few windows hold a line
+        gap = {k: v[(rec['time_s'] < 3.2) | (rec['time_s'] > 5.8)] for k, v in rec.items()}
+        self.assertIsNone(runcost.remaining_wall(gap, 9.0, 8.0))
+        self.assertEqual(runcost.remaining_wall(rec, end_s=6.0, feed_end_s=5.0), 0.0)
+
+
 if __name__ == '__main__':
     unittest.main()

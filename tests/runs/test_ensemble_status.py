@@ -46,6 +46,33 @@ class TestStatus(unittest.TestCase):
         self.assertRegex(lines[2], r'^dimer_n1000_s3 +failed +attempts 3  +error: ValueError: bad grain$')
         self.assertRegex(lines[3], r'^dimer_n1000_s4 +pending +attempts 0  $')
 
+    def test_line_says_what_is_left(self):
+        """A run with a long enough record: its line adds the wall time it still needs at its
+        recent pace (yadecd.runs.cost.remaining_wall, tested on its own in test_cost)."""
+        from yadecd.runs import cost as runcost
+        with tempfile.TemporaryDirectory() as root:
+            e = ensemble.Ensemble(root)
+            e.plan([1000], [1], 1.0, [])
+            name = sorted(e.runs())[0]
+            e.runs()[name].update(state='submitted', attempts=1)
+            e.save()
+            d = os.path.join(root, name)
+            os.makedirs(d)
+            with open(os.path.join(d, 'run.json'), 'w') as f:
+                json.dump({'n_grains': 1000, 'rate': 200.0, 'dt': 5e-4, 'relax': 1.0}, f)
+            t = [0.05 * k for k in range(1, 61)]                     # to 3 s, c(t) = 40 t s/s
+            with open(os.path.join(d, 'progress.csv'), 'w') as f:
+                f.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
+                for x in t:
+                    f.write('%.2f,%d,%d,50,1e-3,%.3f\n' % (x, 200 * x, 600 * x, 20 * x * x))
+            left = ensemble.progress_of(d)['remaining_s']
+            feed_end = ensemble.feed_time(1000, 200.0, 5e-4)
+            exact = 20 * (feed_end ** 2 - 9.0) + 40 * feed_end * 1.0
+            self.assertAlmostEqual(left / exact, 1.0, delta=1e-3)
+            self.assertEqual(left, runcost.remaining_wall(runcost.read_progress(os.path.join(d, 'progress.csv')), feed_end + 1.0, feed_end))
+            line = ensemble.status_lines(root)[0]
+        self.assertRegex(line, r' 180 s of wall time so far, about %d min more at its recent pace$' % round(exact / 60))
+
     def test_progress_without_run_json(self):
         with tempfile.TemporaryDirectory() as d:
             self.assertIsNone(ensemble.progress_of(d))
@@ -55,7 +82,8 @@ class TestStatus(unittest.TestCase):
                 self.assertIsNone(ensemble.progress_of(d))
             with open(os.path.join(d, 'progress.csv'), 'w') as f:
                 f.write('time_s,grains,contacts,sweeps,residual,wall_s\n0.75,150,300,20,1e-3,12.0\n')
-            self.assertEqual(ensemble.progress_of(d), {'time_s': 0.75, 'end_s': None, 'grains': 150, 'wall_s': 12.0})
+            self.assertEqual(ensemble.progress_of(d), {'time_s': 0.75, 'end_s': None, 'grains': 150, 'wall_s': 12.0,
+                                                    'remaining_s': None})
             with open(os.path.join(d, 'progress.csv'), 'a') as f:
                 f.write('0.80,160,3')     # a last line cut short: the one before stands
             self.assertEqual(ensemble.progress_of(d)['time_s'], 0.75)

@@ -293,8 +293,10 @@ def run_ensemble(root, repo, jobs=2, order='small-first', log=print, retry_faile
 
 def progress_of(run_dir):
     """Where an unfinished run stands, from its ``progress.csv`` and ``run.json``: dict ``time_s``,
-    ``end_s`` (the end of its feed plus its relaxation; None without run.json), ``grains`` and
-    ``wall_s`` (its wall time so far, over all segments); None before its first progress line."""
+    ``end_s`` (the end of its feed plus its relaxation; None without run.json), ``grains``,
+    ``wall_s`` (its wall time so far, over all segments) and ``remaining_s`` (the wall time it
+    still needs at its recent pace, :func:`yadecd.runs.cost.remaining_wall`; None without run.json
+    or with too short a record); None before its first progress line."""
     path = os.path.join(run_dir, 'progress.csv')
     try:
         prog = runcost.read_progress(path) if os.path.exists(path) else {}
@@ -303,20 +305,23 @@ def progress_of(run_dir):
     if not all(k in prog and prog[k].size for k in ('time_s', 'grains', 'wall_s')):
         return None
     row = {k: float(prog[k][-1]) for k in ('time_s', 'grains', 'wall_s')}
-    end = None
+    end = feed_end = None
     try:
         with open(os.path.join(run_dir, 'run.json')) as f:
             p = json.load(f)
-        end = feed_time(int(p['n_grains']), p.get('rate', DEFAULTS['rate']), p.get('dt', DEFAULTS['dt'])) + float(p.get('relax', 0))
+        feed_end = feed_time(int(p['n_grains']), p.get('rate', DEFAULTS['rate']), p.get('dt', DEFAULTS['dt']))
+        end = feed_end + float(p.get('relax', 0))
     except (OSError, ValueError, KeyError):
         pass
-    return {'time_s': row['time_s'], 'end_s': end, 'grains': int(row['grains']), 'wall_s': row['wall_s']}
+    return {'time_s': row['time_s'], 'end_s': end, 'grains': int(row['grains']), 'wall_s': row['wall_s'],
+            'remaining_s': runcost.remaining_wall(prog, end, feed_end)}
 
 
 def status_lines(root):
     """One line per run: name, state, attempts, and its wall time when it is done, where it
-    stands when it is not (simulated time of its end, grains, wall time so far: :func:`progress_of`),
-    the first error line when it failed."""
+    stands when it is not (simulated time of its end, grains, wall time so far and, once its record
+    is long enough, the wall time it still needs at its recent pace: :func:`progress_of`), the first
+    error line when it failed."""
     ens = Ensemble(root)
     lines = []
     for name, rec in sorted(ens.runs().items(), key=lambda kv: (kv[1]['n_grains'], kv[1]['seed'])):
@@ -332,6 +337,8 @@ def status_lines(root):
             if pr is not None:
                 where = 't = %.2f%s s, %s grains, %.0f s of wall time so far' % (
                     pr['time_s'], '' if pr['end_s'] is None else ' of %.2f' % pr['end_s'], pr['grains'], pr['wall_s'])
+                if pr['remaining_s'] is not None:
+                    where += ', about %.0f min more at its recent pace' % (pr['remaining_s'] / 60)
         lines.append('%-12s %-9s attempts %d  %s%s' % (name, state, rec.get('attempts', 0), where,
                                                        ('  error: ' + err[-1]) if err and state == 'failed' else ''))
     return lines
