@@ -99,18 +99,19 @@ def cost_windows(progress, dt, window_s, segments=(), min_lines=5):
     return rows
 
 
-def remaining_wall(progress, end_s, feed_end_s, windows=8, min_windows=4):
+def remaining_wall(progress, end_s, feed_end_s, min_intervals=8, max_intervals=400):
     """Wall time [s] an unfinished run still needs at the pace of its own recent past, or None
     when its record is too short to say.
 
     During the feed the cost per simulated second grows with the pile (more contacts, more
-    sweeps per step), close to a power of the simulated time: c(t) = a·t^β. The second half of
-    the record so far is cut into ``windows`` windows of equal simulated time; each gives a rate
-    Δwall/Δt at its middle time, and a, β come from a Theil–Sen fit of log rate on log t (the
-    median of the pairwise slopes, then the median intercept), so that one window slowed by a
-    pause or another process moves the fit little; β is kept in [0, 3]. The rest of the feed
-    costs ∫ c dt up to ``feed_end_s``; the relaxation (to ``end_s``) at the rate the feed ends
-    with. A run already relaxing: the median rate of its windows times the time left.
+    sweeps per step), close to a power of the simulated time: c(t) = a·t^β. Each interval
+    between two progress lines in the second half of the record gives a rate Δwall/Δt at its
+    middle time, and a, β come from a Theil–Sen fit of log rate on log t (the median of the
+    pairwise slopes, then the median intercept), so that intervals slowed by a pause or by
+    another process (each lands in one interval) move the fit little; β is kept in [0, 3]. The
+    rest of the feed costs ∫ c dt up to ``feed_end_s``; the relaxation (to ``end_s``) at the rate
+    the feed ends with. A run already relaxing: the median rate of its intervals times the time
+    left. At most ``max_intervals`` (the latest) are used; fewer than ``min_intervals``: None.
 
     :param progress: :func:`read_progress`'s dict (``time_s``, ``wall_s``).
     :param end_s: simulated time at which the run ends [s].
@@ -123,25 +124,19 @@ def remaining_wall(progress, end_s, feed_end_s, windows=8, min_windows=4):
     now = float(t[-1])
     if now >= end_s:
         return 0.0
-    edges = np.linspace(0.5 * now, now, windows + 1)
-    wall_at = np.interp(edges, t, w)
-    if edges[0] < t[0]:
+    dt, dw = np.diff(t), np.diff(w)
+    mid = 0.5 * (t[1:] + t[:-1])
+    ok = (dt > 0) & (dw > 0) & (t[:-1] >= 0.5 * now)
+    mid, rate = mid[ok][-max_intervals:], (dw[ok] / dt[ok])[-max_intervals:]
+    if rate.size < min_intervals:
         return None
-    rate = np.diff(wall_at) / np.diff(edges)
-    mid = 0.5 * (edges[1:] + edges[:-1])
-    ok = (rate > 0) & (mid > 0)
-    # a window with no progress line inside it is an interpolation, not a measurement
-    counts = np.histogram(t, bins=edges)[0]
-    ok &= counts >= 1
-    if ok.sum() < min_windows:
-        return None
-    x, y = np.log(mid[ok]), np.log(rate[ok])
     if now >= feed_end_s:
-        return float(np.median(rate[ok]) * (end_s - now))
+        return float(np.median(rate) * (end_s - now))
+    x, y = np.log(mid), np.log(rate)
     i, j = np.triu_indices(x.size, 1)
-    beta = float(np.clip(np.median((y[j] - y[i]) / (x[j] - x[i])), 0.0, 3.0))
-    log_a = float(np.median(y - beta * x))
-    a = np.exp(log_a)
+    keep = x[j] != x[i]
+    beta = float(np.clip(np.median((y[j] - y[i])[keep] / (x[j] - x[i])[keep]), 0.0, 3.0))
+    a = float(np.exp(np.median(y - beta * x)))
     feed = a / (beta + 1) * (feed_end_s ** (beta + 1) - now ** (beta + 1))
     relax = a * feed_end_s ** beta * (end_s - feed_end_s)
     return float(feed + relax)
