@@ -83,7 +83,7 @@ def main(argv=None):
     summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
                                      records_from=args.records)
     print('written: %s' % os.path.join(out, 'ensemble_summary.json'))
-    return 0 if summary['n_runs_analysed'] else 1
+    return 0 if summary['n_runs_analysed_all_shapes'] else 1
 
 
 if __name__ == '__main__':

@@ -380,6 +380,32 @@ class TestShapeStatistics(unittest.TestCase):
                 self.assertNotIn('300 sphere grains', f.read())
 
 
+    def test_ensemble_of_clumps_only(self):
+        """analyse_ensemble on an ensemble with no sphere piles (here: an empty ensemble and
+        stored dimer records): the shapes are analysed, the sphere size table says there is
+        nothing to tabulate, no empty size figure is drawn, and the summary counts the piles of
+        every shape (pile_ensemble.py analyse then exits 0)."""
+        from yadecd.analysis import ensemble as pea
+        rec = TestEnsembleStatistics.record
+        with tempfile.TemporaryDirectory() as d:
+            root, stored, out = (os.path.join(d, x) for x in ('ens', 'stored', 'out'))
+            os.makedirs(root)
+            os.makedirs(stored)
+            for s in (1, 2, 3):
+                r = dict(rec(1000, s, 'relaxed', 30.0 + s, 1.0, 2.0), grain_shape='dimer', run='dimer_n1000_s%d' % s,
+                         cache_version=pea.CACHE_VERSION,
+                         rings_r_over_d=[1.0, 3.0], rings_p_over_hydrostatic=[0.8, 1.0])
+                with open(os.path.join(stored, '%s_relaxed.json' % r['run']), 'w') as f:
+                    json.dump(r, f)
+            summary = pea.analyse_ensemble(root, out, n_boot=50, log=lambda m: None, records_from=[stored])
+            self.assertEqual(summary['n_runs_analysed'], 0)
+            self.assertEqual(summary['n_runs_analysed_all_shapes'], 3)
+            self.assertEqual(sorted(f for f in os.listdir(out) if f.startswith('ensemble_') and f.endswith('.png')), [])
+            with open(os.path.join(out, 'ensemble_table.md')) as f:
+                self.assertIn('No piles of spheres', f.read())
+            self.assertIn('dimer', summary['shapes'])
+
+
 class TestGrainSpheres(unittest.TestCase):
     def test_clumps_drawn_as_members(self):
         """A snapshot with a sphere grain (id 4) and a clump grain (id 7, members at x = ±1 mm):

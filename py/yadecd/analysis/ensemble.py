@@ -669,6 +669,7 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
     records = [r for r in records if grain_shape(r) == 'sphere']   # the size trend of the paper's grains
     stats, changes = aggregate(records)
     summary = {'root': os.path.abspath(root), 'n_runs_analysed': len({r['run'] for r in records}),
+               'n_runs_analysed_all_shapes': len({r['run'] for r in every_shape}),
                'failed_runs': failed, 'unfinished_runs': unfinished, 'stats': stats,
                'relaxation_change': changes,
                'conventions': {'interval': '95 % Student-t over seeds (mean ± std over seeds)',
@@ -680,16 +681,21 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
         summary['shapes'] = shapes
     with open(os.path.join(out_dir, 'ensemble_summary.json'), 'w') as f:
         json.dump(jsonable(summary), f, indent=1, sort_keys=True)
-    table = table_markdown(stats, changes, size_labels(records))
+    if records:
+        table = table_markdown(stats, changes, size_labels(records))
+    else:    # an ensemble of clumps only: no size table, and no empty figures
+        table = ('No piles of spheres among the analysed runs: the size table and its figures (ensemble_*.png) '
+                 'are not drawn; the shapes are in shape_table.md.\n')
     if failed:
         table += '\nFailed runs (not in the statistics): ' + '; '.join('%s: %s' % (k, ' '.join(v)) for k, v in failed.items()) + '\n'
     if unfinished:
         table += '\nUnfinished runs (not in the statistics): ' + ', '.join(unfinished) + '\n'
     with open(os.path.join(out_dir, 'ensemble_table.md'), 'w') as f:
         f.write(table)
-    fig_slope(stats, records, os.path.join(out_dir, 'ensemble_slope.png'))
-    fig_dip(stats, records, os.path.join(out_dir, 'ensemble_dip.png'))
-    fig_cuts(records, os.path.join(out_dir, 'ensemble_cuts.png'))
-    fig_pressure(records, os.path.join(out_dir, 'ensemble_pressure.png'))
+    if records:
+        fig_slope(stats, records, os.path.join(out_dir, 'ensemble_slope.png'))
+        fig_dip(stats, records, os.path.join(out_dir, 'ensemble_dip.png'))
+        fig_cuts(records, os.path.join(out_dir, 'ensemble_cuts.png'))
+        fig_pressure(records, os.path.join(out_dir, 'ensemble_pressure.png'))
     log(table)
     return summary
