@@ -681,11 +681,9 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
         summary['shapes'] = shapes
     with open(os.path.join(out_dir, 'ensemble_summary.json'), 'w') as f:
         json.dump(jsonable(summary), f, indent=1, sort_keys=True)
-    if records:
-        table = table_markdown(stats, changes, size_labels(records))
-    else:    # an ensemble of clumps only: no size table, and no empty figures
-        table = ('No piles of spheres among the analysed runs: the size table and its figures (ensemble_*.png) '
-                 'are not drawn; the shapes are in shape_table.md.\n')
+    table = (table_markdown(stats, changes, size_labels(records)) if records else   # clumps only: no size table, no empty figures
+             'No piles of spheres among the analysed runs: the size table and its figures (ensemble_*.png) are not drawn; '
+             'the shapes are in shape_table.md.\n')
     if failed:
         table += '\nFailed runs (not in the statistics): ' + '; '.join('%s: %s' % (k, ' '.join(v)) for k, v in failed.items()) + '\n'
     if unfinished:
