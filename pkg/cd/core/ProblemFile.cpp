@@ -80,8 +80,7 @@ namespace cd {
 		o << "params " << p.h;
 		put(o, p.up);
 		o << ' ' << p.tolerance << ' ' << p.maxIter << ' ' << p.checkEvery << ' ' << p.relaxation << ' ' << p.schedule << ' ' << p.slabs << ' '
-		  << int(p.momentum) << ' ' << int(p.sphereFastPath) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter
-		  ;
+		  << int(p.momentum) << ' ' << int(p.sphereFastPath) << ' ' << p.positionTolerance << ' ' << p.maxProjectionIter;
 		// optional trailing fields, written up to the last that departs from its default
 		// (absent: correctionMomentum 0, slabsAcross 1, slabsOwnBodies 0)
 		const int trailing = p.slabsOwnBodies ? 3 : p.slabsAcross != 1 ? 2 : p.correctionMomentum ? 1 : 0;
