@@ -4,6 +4,7 @@
     python3 scripts/pile_ensemble.py run OUT --sizes 300,1000,2000 --seeds 1-8 [--relax 1] [--jobs 2 | --scheduler tcp://HOST:8786] [-- PILE OPTIONS]
     python3 scripts/pile_ensemble.py status OUT
     python3 scripts/pile_ensemble.py analyse OUT [--out DIR]
+    python3 scripts/pile_ensemble.py carry OUT DEST [--every MIN] [--snap-every S]
 
 ``run`` runs each pile as a task of Dask's distributed engine, one YADE process per pile
 (``scripts/pile.py``, one thread each): on a local cluster of ``--jobs`` workers, or on the
@@ -12,8 +13,11 @@ snapshots at half the feed, at the end of the feed and after ``--relax`` seconds
 relaxation. Calling it again resumes: finished runs are skipped, interrupted ones continue from
 their checkpoints, failed ones are reported (``--retry-failed`` tries them again). ``analyse``
 runs the pile analysis on every snapshot of every finished run and writes per-run summaries,
-the ensemble statistics (means, spreads, 95 % intervals) and figures. Needs no YADE for
-``status`` and ``analyse``; all three work with Debian's /usr/bin/python3.
+the ensemble statistics (means, spreads, 95 % intervals) and figures. ``carry`` copies every
+run's portable part (``scripts/pile_carry.py``) to ``DEST/<run>``, beside running piles, and with
+``--every`` again every MIN minutes until every run is done and carried: an ensemble then
+outlives its machine (carry into a checkout's ``runs/``). Needs no YADE for ``status``,
+``analyse`` and ``carry``; all work with Debian's /usr/bin/python3.
 """
 import argparse
 import os
@@ -50,6 +54,13 @@ def main(argv=None):
     a.add_argument('--n-boot', type=int, default=2000, help='bootstrap resamples')
     a.add_argument('--records', action='append', default=[],
                    help='directory of stored per-run records (e.g. docs/data/ensemble_runs) for runs not in OUT')
+    c = sub.add_parser('carry', help="copy every run's portable part to DEST/<run> (pile_carry.py), beside running piles")
+    c.add_argument('out')
+    c.add_argument('dest')
+    c.add_argument('--every', type=float, default=None, metavar='MIN',
+                   help='carry again every MIN minutes until every run is done and carried')
+    c.add_argument('--snap-every', type=float, default=None, metavar='S',
+                   help='carry only the snapshots at multiples of S seconds (and the newest, and the end of the feed)')
     args = p.parse_args(argv)
 
     from yadecd.runs import ensemble as ens
@@ -78,12 +89,39 @@ def main(argv=None):
     if args.cmd == 'status':
         print('\n'.join(ens.status_lines(args.out)))
         return 0
+    if args.cmd == 'carry':
+        return carry(p, ens, args)
     from yadecd.analysis import ensemble as stats
     out = args.figures or os.path.join(args.out, 'analysis')
     summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
                                      records_from=args.records)
     print('written: %s' % os.path.join(out, 'ensemble_summary.json'))
     return 0 if summary['n_runs_analysed_all_shapes'] else 1
+
+
+def carry(p, ens, args):
+    """The ``carry`` command: once, or every ``--every`` minutes until every run is done and carried."""
+    import time
+    if args.every is not None and not args.every > 0:
+        p.error('--every must be a positive number of minutes')
+    if args.snap_every is not None and not args.snap_every > 0:
+        p.error('--snap-every must be a positive time in seconds')
+    while True:
+        try:
+            outcome = ens.carry_ensemble(args.out, args.dest, snap_every=args.snap_every,
+                                         log=lambda m: print(m, flush=True))
+        except (OSError, ValueError) as e:
+            p.error(str(e))
+        counts = {}
+        for v in outcome.values():
+            key = v if v in ('carried', 'unchanged', 'no checkpoint', 'not started') else 'failed'
+            counts[key] = counts.get(key, 0) + 1
+        print('%s carry of %s: %s' % (time.strftime('%H:%M:%S'), args.out,
+                                      ', '.join('%d %s' % (n, k) for k, n in sorted(counts.items()))), flush=True)
+        all_done = all(ens.is_done(os.path.join(args.dest, name)) for name in outcome)
+        if args.every is None or all_done:
+            return 1 if counts.get('failed') else 0
+        time.sleep(60 * args.every)
 
 
 if __name__ == '__main__':

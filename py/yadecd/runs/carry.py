@@ -65,6 +65,14 @@ def feed_end(run):
         return None
 
 
+def snapshots_to_carry(src, snap_every=None):
+    """The snapshot file names :func:`carry` takes from the run directory ``src``
+    (:func:`chosen_snapshots` with the end of the feed of its run.json kept)."""
+    with open(os.path.join(src, 'run.json')) as f:
+        end = feed_end(json.load(f))
+    return chosen_snapshots(os.listdir(src), snap_every, also=() if end is None else (end,))
+
+
 def carry(src, dest, snap_every=None, log=print):
     """Copy the portable part of the pile run in ``src`` to ``dest`` (replaced whole if it exists).
 
@@ -94,9 +102,7 @@ def carry(src, dest, snap_every=None, log=print):
     for name in RUN_FILES:
         if os.path.exists(os.path.join(src, name)):
             shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
-    with open(os.path.join(src, 'run.json')) as f:
-        end = feed_end(json.load(f))
-    snaps = chosen_snapshots(os.listdir(src), snap_every, also=() if end is None else (end,))
+    snaps = snapshots_to_carry(src, snap_every)
     for name in snaps:
         shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
 

@@ -317,6 +317,55 @@ def progress_of(run_dir):
             'remaining_s': runcost.remaining_wall(prog, end, feed_end)}
 
 
+def carry_ensemble(root, dest, snap_every=None, log=print):
+    """Carry every run of the ensemble in ``root`` that has a checkpoint to ``dest/<name>``
+    (:func:`yadecd.runs.carry.carry`: run.json, progress, snapshots, the newest valid checkpoint
+    reduced to its state.npz), so that the ensemble outlives the machine it runs on: the driver
+    resumes each copy from its checkpoint (``pile_carry.py`` back, or ``run`` on ``dest`` itself).
+
+    Safe beside running piles: a checkpoint is copied only once complete and verified, and each
+    destination is swapped in whole. A run whose copy already holds its newest checkpoint, its
+    snapshots and its finished state is left as it is. One run's failure (a checkpoint pruned while
+    it was copied, say) is logged and the others are still carried.
+
+    :returns: dict name -> ``'carried'``, ``'unchanged'``, ``'no checkpoint'``, ``'not started'``
+        or the error's text.
+    """
+    from .carry import RECORD, carry, snapshots_to_carry
+    from .checkpoint import CheckpointStore
+    ens = Ensemble(root)
+    if not os.path.exists(ens.path):
+        raise FileNotFoundError('carry: %s is not an ensemble directory (no ensemble.json)' % ens.root)
+    if os.path.abspath(dest) == ens.root:
+        raise ValueError('carry: the destination is the ensemble itself (%s)' % ens.root)
+    outcome = {}
+    for name in sorted(ens.runs()):
+        src, out = os.path.join(ens.root, name), os.path.join(dest, name)
+        if not os.path.exists(os.path.join(src, 'run.json')):
+            outcome[name] = 'not started'
+            continue
+        latest = CheckpointStore(src).latest()
+        if latest is None:
+            outcome[name] = 'no checkpoint'
+            continue
+        try:
+            with open(os.path.join(out, RECORD)) as f:
+                before = json.load(f)
+        except (OSError, ValueError):
+            before = None
+        if (before is not None and before.get('checkpoint') == latest[0] and is_done(out) == is_done(src)
+                and before.get('snapshots') == snapshots_to_carry(src, snap_every)):
+            outcome[name] = 'unchanged'
+            continue
+        try:
+            carry(src, out, snap_every=snap_every, log=log)
+            outcome[name] = 'carried'
+        except (OSError, ValueError, RuntimeError) as e:      # CheckpointError is a RuntimeError
+            outcome[name] = '%s: %s' % (type(e).__name__, e)
+            log('carry: %s not carried (%s)' % (name, outcome[name]))
+    return outcome
+
+
 def status_lines(root):
     """One line per run: name, state, attempts, and its wall time when it is done, where it
     stands when it is not (simulated time of its end, grains, wall time so far and, once its record
