@@ -151,7 +151,7 @@ def _dt(record):
     return record.get('dt_s', DEFAULTS['dt'])
 
 
-def _feed_radius(record):
+def feed_radius_of(record):
     """The record's feed radius [m] (records written before it was kept used the paper's 0.8 cm)."""
     return record.get('feed_radius_m', DEFAULTS['feed_radius'])
 
@@ -163,7 +163,7 @@ def size_labels(records):
     out = {}
     for n in sorted({r['n_grains'] for r in records}):
         mine = [r for r in records if r['n_grains'] == n]
-        dts, feeds = sorted({_dt(r) for r in mine}), sorted({_feed_radius(r) for r in mine})
+        dts, feeds = sorted({_dt(r) for r in mine}), sorted({feed_radius_of(r) for r in mine})
         notes = [] if dts == [DEFAULTS['dt']] else ['h = %s s' % ', '.join('%g' % d for d in dts)]
         if feeds != [DEFAULTS['feed_radius']]:
             notes.append('feed radius %s cm' % ', '.join('%g' % (100 * f) for f in feeds))
@@ -657,8 +657,9 @@ def analyse_shapes(records, out_dir):
 
 def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
     """Analyse every finished run of the ensemble in ``root`` (plus the stored per-run records of
-    ``records_from`` directories for runs absent from ``root``); write the statistics, the table
-    and the figures into ``out_dir``. Returns the summary dict."""
+    ``records_from`` directories for runs absent from ``root``); write the statistics, the tables
+    (per size, per shape, the size trends of :mod:`.trends`) and the figures into ``out_dir``.
+    Returns the summary dict."""
     os.makedirs(out_dir, exist_ok=True)
     records, failed, unfinished = collect(root, out_dir, log=log)
     extra = stored_records(records_from, {(r['run'], r['epoch']) for r in records})
@@ -676,9 +677,9 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
                                'dip_pooled': 'D = 1 - sum_p p_disc / sum_p p_ring over piles p; delete-one-pile jackknife, t interval, '
                                              'confidence = one-sided t probability that D > 0',
                                'units': 'SI unless the key says otherwise'}}
-    shapes = analyse_shapes(every_shape, out_dir)
-    if shapes:
-        summary['shapes'] = shapes
+    from .trends import analyse_trends   # (it uses this module's shape helpers): size_trend.md and figures
+    summary.update((k, v) for k, v in (('shapes', analyse_shapes(every_shape, out_dir)),
+                                       ('size_trends', analyse_trends(every_shape, out_dir))) if v)
     with open(os.path.join(out_dir, 'ensemble_summary.json'), 'w') as f:
         json.dump(jsonable(summary), f, indent=1, sort_keys=True)
     table = (table_markdown(stats, changes, size_labels(records)) if records else   # clumps only: no size table, no empty figures

@@ -1,0 +1,140 @@
+"""Trends of pile observables with the pile's size, per grain shape: does the central dip deepen
+as piles grow, does the flank steepen? (docs/pile.md; issue 30's question, asked of Moreau's.)
+
+Each pile is one point: its own value at an epoch (end of the feed or relaxed) against log10 of
+its grain count. :func:`yadecd.analysis.stats.size_trend` fits the line and gives its slope per
+decade of grains with a pooled Student-t interval (every pile, the full pile included) and a
+Welch–Satterthwaite one (the sizes with two piles or more, each with its own scatter), and the
+one-sided confidence that the slope is positive. Piles fed over another disc than the paper's
+are left out (a different experiment: docs/pile.md, "Against the literature"); the time step
+and tolerance may differ between sizes (the faster protocol, validated against the seed scatter).
+"""
+import os
+
+import numpy as np
+
+from ..pile.protocol import DEFAULTS
+from . import figures as pf
+from .ensemble import by_shape, feed_radius_of, SHAPE_STYLE
+from .stats import size_trend
+
+#: observables whose size trend is reported: record key -> (name, unit, format of a value)
+KEYS = {'dip_D': ('central dip D', '', '%+.3f'), 'slope_deg': ('flank slope', '°', '%+.2f')}
+
+
+#: the size ranges fitted: every size, and the sizes whose piles have a straight flank (the
+#: 300-grain piles have none, and a central peak that alone can tilt a line over all sizes)
+RANGES = {'all sizes': 0, '≥ 1000 grains': 1000}
+
+
+def trend_points(records, epoch, min_grains=0):
+    """(grain counts, {key: values}) of the records at ``epoch`` of piles of ``min_grains`` or more,
+    fed over the paper's disc; a value the record lacks is nan."""
+    mine = [r for r in records if r['epoch'] == epoch and r['n_grains'] >= min_grains
+            and np.isclose(feed_radius_of(r), DEFAULTS['feed_radius'])]
+    n = np.array([r['n_grains'] for r in mine], dtype=float)
+    vals = {k: np.array([np.nan if r.get(k) is None else r[k] for r in mine], dtype=float) for k in KEYS}
+    return n, vals
+
+
+def size_trends(records, epochs=('feed', 'relaxed'), ranges=RANGES):
+    """{shape: {range: {epoch: {key: size_trend result}}}} for every shape and size range
+    (``ranges``: label -> smallest pile) with piles at two sizes or more."""
+    out = {}
+    for shape, recs in by_shape(records).items():
+        for label, smallest in ranges.items():
+            for epoch in epochs:
+                n, vals = trend_points(recs, epoch, smallest)
+                if len(set(n)) >= 2:
+                    out.setdefault(shape, {}).setdefault(label, {})[epoch] = {k: size_trend(n, v) for k, v in vals.items()}
+    return out
+
+
+def _interval(ci, fmt):
+    return '[%s, %s]' % (fmt % ci[0], fmt % ci[1]) if np.all(np.isfinite(ci)) else '–'
+
+
+def trend_table_markdown(trends):
+    """One row per shape, size range, epoch and observable: the slope per decade of grains with
+    both intervals and confidences, the sizes and pile counts (a range whose piles are those of a
+    row above is not repeated)."""
+    rows = ['| shape | sizes | epoch | observable | per decade of grains, all piles [95 % t] | confidence > 0 '
+            '| replicated sizes only [95 % Welch] (df) | confidence > 0 | piles per size |',
+            '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
+    written = set()
+    for shape, by_range in trends.items():
+        for label, by_epoch in by_range.items():
+            for epoch, by_key in by_epoch.items():
+                for key, t in by_key.items():
+                    same = (shape, epoch, key, tuple(t['sizes'].items()))
+                    if same in written:      # a range that leaves out no pile with this value
+                        continue
+                    written.add(same)
+                    name, unit, fmt = KEYS[key]
+                    fmt_u = fmt + unit
+                    rows.append('| %s | %s | %s | %s | %s %s | %.0f %% | %s %s (%.1f) | %.0f %% | %s |' % (
+                        shape, label, epoch, name, fmt_u % t['slope'], _interval(t['ci95_t'], fmt_u),
+                        100 * t['confidence_t'], fmt_u % t['slope_welch'], _interval(t['ci95_welch'], fmt_u),
+                        t['df_welch'], 100 * t['confidence_welch'], ', '.join('%d: %d' % kv for kv in t['sizes'].items())))
+    return '\n'.join(rows) + '\n'
+
+
+def fig_size_trend(records, trends, path, key='dip_D', epoch='relaxed'):
+    """Every pile's value against its grain count (log axis), per shape, with the line fitted over
+    every size (solid; dotted: the slopes of its 95 % interval through the mean point) and over the
+    sizes from 1000 grains where that leaves piles out (dashed)."""
+    name, unit, _ = KEYS[key]
+    fig = pf.new_figure(7.5, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    drawn = 0
+    for k, (shape, recs) in enumerate(by_shape(records).items()):
+        n, vals = trend_points(recs, epoch)
+        y = vals[key]
+        ok = np.isfinite(y)
+        if not ok.any():
+            continue
+        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
+        shift = 1 + 0.03 * (k - 1)
+        ax.plot(n[ok] * shift, y[ok], marker, color=colour, ms=3.5, alpha=0.7, ls='none',
+                label='%s: one point per pile' % shape)
+        drawn += int(ok.sum())
+        shown = set()
+        for j, label in enumerate(RANGES):
+            t = trends.get(shape, {}).get(label, {}).get(epoch, {}).get(key)
+            if t is None or not np.isfinite(t['slope']) or tuple(t['sizes']) in shown:
+                continue
+            shown.add(tuple(t['sizes']))
+            x = np.log10(np.array([k for k, c in t['sizes'].items() for _ in range(c)], dtype=float))
+            xs = np.linspace(x.min(), x.max(), 20)
+            ax.plot(10 ** xs, t['intercept'] + t['slope'] * xs, '-' if j == 0 else '--', color=colour, lw=1.2,
+                    label='%s, %s: %.3g per decade, 95 %% [%.3g, %.3g], confidence %.0f %%' % (
+                        shape, label, t['slope'], t['ci95_t'][0], t['ci95_t'][1], 100 * t['confidence_t']))
+            if j == 0:
+                xm, ym = x.mean(), t['intercept'] + t['slope'] * x.mean()
+                for b in t['ci95_t']:
+                    if np.isfinite(b):
+                        ax.plot(10 ** xs, ym + b * (xs - xm), ':', color=colour, lw=0.8)
+    if key == 'dip_D':
+        ax.axhline(0, color='k', lw=0.6)
+    ax.set_xscale('log')
+    ax.set_xlabel('grains')
+    ax.set_ylabel('%s%s, %s piles' % (name, ' [%s]' % unit.replace('°', 'deg') if unit else '', epoch))
+    ax.set_title('%s against size: least-squares lines over single piles (dotted: the 95 %% slopes over all sizes)' % name,
+                 fontsize=8)
+    if not drawn:
+        ax.text(0.5, 0.5, 'no piles with this value', transform=ax.transAxes, ha='center')
+    ax.legend(fontsize=6, loc='upper left', bbox_to_anchor=(1.01, 1.0))
+    return pf.save_figure(fig, path)
+
+
+def analyse_trends(records, out_dir):
+    """Write ``size_trend.md`` and ``size_trend_{dip,slope}.png`` (relaxed piles) into ``out_dir``;
+    return the trends ({} when no shape has two sizes)."""
+    trends = size_trends(records)
+    if not trends:
+        return {}
+    with open(os.path.join(out_dir, 'size_trend.md'), 'w') as f:
+        f.write(trend_table_markdown(trends))
+    fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_dip.png'), 'dip_D')
+    fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_slope.png'), 'slope_deg')
+    return trends

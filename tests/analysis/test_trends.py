@@ -1,0 +1,96 @@
+"""Size trends per grain shape (yadecd.analysis.trends) on constructed per-run records whose
+answer is known: values on an exact line of log10(grains) are fitted exactly over each size
+range; a pile fed over another disc, a value a record lacks and a shape with one size are left
+out; a range that leaves no pile out is not repeated in the table; the figures are written.
+The estimator itself is tested in test_size_trend."""
+import math
+import os
+import tempfile
+import unittest
+
+import numpy as np
+
+from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
+from yadecd.analysis import trends
+from yadecd.pile.protocol import DEFAULTS
+
+
+def record(n, seed, epoch, D, slope, shape='sphere', feed=None):
+    r = {'run': '%s_n%d_s%d' % (shape, n, seed), 'n_grains': n, 'seed': seed, 'epoch': epoch,
+         'grain_shape': shape, 'dip_D': D, 'slope_deg': slope}
+    if feed is not None:
+        r['feed_radius_m'] = feed
+    return r
+
+
+def constructed():
+    """Spheres at 300-5000 grains, 3 seeds each: relaxed D = 0.4 - 0.1 log10 N + a seed offset that
+    sums to zero at each size (so the line is exact), the 300-grain piles off that line by -0.5
+    (their central peak) and without a slope; a pile fed over a 0.4 cm disc far off both lines;
+    dimers at 1000 and 2000 grains; tetra at 1000 only."""
+    recs = []
+    for n in (300, 1000, 2000, 5000):
+        for seed, off in zip((1, 2, 3), (-0.05, 0.0, 0.05)):
+            D = 0.4 - 0.1 * math.log10(n) + off - (0.5 if n == 300 else 0.0)
+            slope = None if n == 300 else 20 + 2 * math.log10(n) + off
+            recs.append(record(n, seed, 'relaxed', D, slope))
+    recs.append(record(2000, 9, 'relaxed', 5.0, 80.0, feed=0.004))
+    recs.append(record(2000, 10, 'relaxed', 0.4 - 0.1 * math.log10(2000), 26.6,
+                       feed=DEFAULTS['feed_radius']))      # the paper's disc, written out: kept
+    for n in (1000, 2000):
+        for seed in (1, 2):
+            recs.append(record(n, seed, 'relaxed', 0.3 * math.log10(n) + 0.01 * seed, 30 + seed, 'dimer'))
+    recs.append(record(1000, 1, 'relaxed', 0.0, 37.0, 'tetra'))
+    return recs
+
+
+class TestTrends(unittest.TestCase):
+
+    def test_known_lines(self):
+        t = trends.size_trends(constructed(), epochs=('relaxed',))
+        self.assertEqual(sorted(t), ['dimer', 'sphere'])           # tetra: one size only
+        sph_all = t['sphere']['all sizes']['relaxed']
+        sph_big = t['sphere']['≥ 1000 grains']['relaxed']
+        # from 1000 grains D lies on its line exactly (the extra 2000-grain pile lies on it too)
+        self.assertAlmostEqual(sph_big['dip_D']['slope'], -0.1, places=12)
+        self.assertAlmostEqual(sph_big['dip_D']['slope_welch'], -0.1, places=12)
+        self.assertEqual(sph_big['dip_D']['sizes'], {1000: 3, 2000: 4, 5000: 3})
+        # over all sizes the 300-grain peak tilts the line: the least-squares answer over those piles
+        n = np.array([300] * 3 + [1000] * 3 + [2000] * 4 + [5000] * 3, dtype=float)
+        D = 0.4 - 0.1 * np.log10(n) + np.array([-.05, 0, .05] * 2 + [-.05, 0, .05, 0] + [-.05, 0, .05])
+        D[:3] -= 0.5
+        self.assertAlmostEqual(sph_all['dip_D']['slope'], np.polyfit(np.log10(n), D, 1)[0], places=12)
+        self.assertGreater(sph_all['dip_D']['slope'], 0)
+        # the slope has no value at 300 grains: the same piles in both ranges
+        self.assertEqual(sph_all['slope_deg']['sizes'], {1000: 3, 2000: 4, 5000: 3})
+        self.assertAlmostEqual(sph_all['slope_deg']['slope'], 2.0, delta=0.02)   # 26.6 at 2000 is 0.001 off the line
+        self.assertAlmostEqual(t['dimer']['all sizes']['relaxed']['dip_D']['slope'], 0.3, places=12)
+
+    def test_table_and_figures(self):
+        recs = constructed()
+        with tempfile.TemporaryDirectory() as out:
+            got = trends.analyse_trends(recs, out)
+            self.assertEqual(sorted(os.listdir(out)), ['size_trend.md', 'size_trend_dip.png', 'size_trend_slope.png'])
+            for name in ('size_trend_dip.png', 'size_trend_slope.png'):
+                self.assertGreater(os.path.getsize(os.path.join(out, name)), 10000)
+            with open(os.path.join(out, 'size_trend.md')) as f:
+                table = f.read()
+        self.assertIn('sphere', got)
+        rows = [line for line in table.splitlines()[2:] if line.startswith('|')]
+        # relaxed records only: spheres' D over both ranges, their slope once (the 300-grain piles have
+        # none, so the second range would repeat it); dimers' D and slope once
+        self.assertEqual(len(rows), 5)
+        self.assertEqual(sum(r.startswith('| sphere | ≥ 1000 grains | relaxed | central dip D | -0.100 [')
+                             for r in rows), 1)
+        self.assertFalse(any('tetra' in r for r in rows))
+
+    def test_nothing_to_fit(self):
+        recs = [record(1000, s, 'relaxed', 0.1 * s, 26.0) for s in (1, 2, 3)]
+        self.assertEqual(trends.size_trends(recs), {})
+        with tempfile.TemporaryDirectory() as out:
+            self.assertEqual(trends.analyse_trends(recs, out), {})
+            self.assertEqual(os.listdir(out), [])
+
+
+if __name__ == '__main__':
+    unittest.main()
