@@ -77,7 +77,7 @@ def main(argv=None):
             if failed or unfinished:
                 print('%s: failed %s, unfinished %s (left out)' % (name, sorted(failed), unfinished))
     here = {(x['run'], x['epoch']) for x in records.get('paper', [])}
-    stored = [x for x in pea.stored_records(refs, here) if x['n_grains'] == args.size and pea.grain_shape(x) == args.grain_shape]
+    stored = [x for x in pea.stored_records(refs, here) if protocol.is_reference(x, args.size, args.grain_shape)]
     reference = records.get('paper', []) + stored
     # the paper-setting piles re-run here must reproduce the stored records of the same seeds
     same = []

@@ -93,6 +93,18 @@ class TestCompare(unittest.TestCase):
         self.assertEqual(pr.describe('h1e-3_cm'), 'h = 0.001 s, tolerance 0.001, correction momentum')
         with self.assertRaisesRegex(KeyError, 'h3e-3.*known: paper'):
             pr.setting_options('h3e-3')
+        self.assertEqual(pr.setting_options('feed0.4'), ['--dt', '0.0002', '--tolerance', '0.001', '--feed-radius', '0.004'])
+        self.assertEqual(pr.describe('feed0.4'), 'h = 0.0002 s, tolerance 0.001, feed radius 0.004')
+
+    def test_reference_records(self):
+        """The reference of a study: its size and shape, fed over the paper's disc (0.8 cm), at any time step."""
+        base = {'n_grains': 2000, 'grain_shape': 'sphere'}
+        self.assertTrue(pr.is_reference(base, 2000))                                       # an old record: the paper's disc
+        self.assertTrue(pr.is_reference(dict(base, feed_radius_m=0.008, dt_s=1e-3), 2000))
+        self.assertFalse(pr.is_reference(dict(base, feed_radius_m=0.004), 2000))
+        self.assertFalse(pr.is_reference(base, 1000))
+        self.assertFalse(pr.is_reference(base, 2000, 'dimer'))
+        self.assertTrue(pr.is_reference(dict(base, grain_shape='dimer'), 2000, 'dimer'))
 
 
 class TestEnsembleEpochs(unittest.TestCase):

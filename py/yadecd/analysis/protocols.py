@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import analysis as pa
 from ..io import jsonable
+from ..pile.protocol import DEFAULTS
 from ..runs import ensemble as ens
 
 # name -> (time step [s], tolerance, further pile.py options); 'paper' is the reference
@@ -37,13 +38,20 @@ SETTINGS = {
     'tol1e-2': (2e-4, 1e-2, ()),
     'h1e-3_tol1e-2': (1e-3, 1e-2, ()),
     'h1e-3_cm': (1e-3, 1e-3, ('--correction-momentum',)),   # the accelerated position correction
+    'feed0.4': (2e-4, 1e-3, ('--feed-radius', '0.004')),     # the paper's protocol fed over a 0.4 cm disc (not a faster protocol: the source-size test)
 }
 
 
 def describe(name):
     """A setting in words: 'h = 0.001 s, tolerance 0.001' (and its further options)."""
     dt, tol, extra = SETTINGS[name]
-    return 'h = %g s, tolerance %g%s' % (dt, tol, ''.join(', ' + o.lstrip('-').replace('-', ' ') for o in extra))
+    words = []
+    for o in extra:          # a flag starts a phrase, its value joins it: '--feed-radius 0.004' -> 'feed radius 0.004'
+        if o.startswith('--') or not words:
+            words.append(o.lstrip('-').replace('-', ' '))
+        else:
+            words[-1] += ' ' + o
+    return 'h = %g s, tolerance %g%s' % (dt, tol, ''.join(', ' + w for w in words))
 
 
 # observables compared: record key -> (label, unit factor, unit)
@@ -66,6 +74,15 @@ def setting_options(name):
         raise KeyError('unknown protocol setting %r (known: %s)' % (name, ', '.join(SETTINGS)))
     dt, tol, extra = SETTINGS[name]
     return ['--dt', repr(dt), '--tolerance', repr(tol)] + list(extra)
+
+
+def is_reference(record, n_grains, grain_shape='sphere'):
+    """Whether a stored per-run record belongs to the reference of a study at ``n_grains`` grains of
+    ``grain_shape``: that size and shape, fed over the paper's disc (records of another feed
+    radius are another experiment, whatever their time step)."""
+    from .ensemble import feed_radius_of, grain_shape as shape_of
+    return (record['n_grains'] == n_grains and shape_of(record) == grain_shape
+            and math.isclose(feed_radius_of(record), DEFAULTS['feed_radius'], rel_tol=1e-9))
 
 
 def _finite(values):
