@@ -16,8 +16,12 @@ from yadecd.pile.protocol import DEFAULTS
 
 
 def record(n, seed, epoch, D, slope, shape='sphere', feed=None):
+    """A per-run record as the ensembles write it, with the floor loads of its D (ring 1, disc 1 − D)
+    and one reciprocal pair and one cut (what the ensemble statistics read)."""
     r = {'run': '%s_n%d_s%d' % (shape, n, seed), 'n_grains': n, 'seed': seed, 'epoch': epoch,
-         'grain_shape': shape, 'dip_D': D, 'slope_deg': slope}
+         'grain_shape': shape, 'dip_D': D, 'slope_deg': slope, 'p_disc_Pa': 1.0 - D, 'p_ring_Pa': 1.0,
+         'packing_fraction': 0.5, 'recip_rel': [0.05], 'recip_null': [0.1], 'recip_n_pairs': 1,
+         'law_angle_layer': [5.0], 'law_angle_random': [6.0], 'law_n_cuts': 1, 'law_r_over_R': [0.3]}
     if feed is not None:
         r['feed_radius_m'] = feed
     return r
@@ -70,7 +74,7 @@ class TestTrends(unittest.TestCase):
         recs = constructed()
         with tempfile.TemporaryDirectory() as out:
             got = trends.analyse_trends(recs, out)
-            self.assertEqual(sorted(os.listdir(out)), ['size_trend.md', 'size_trend_dip.png', 'size_trend_slope.png'])
+            self.assertEqual(sorted(os.listdir(out)), ['answer_table.md', 'size_trend.md', 'size_trend_dip.png', 'size_trend_slope.png'])
             for name in ('size_trend_dip.png', 'size_trend_slope.png'):
                 self.assertGreater(os.path.getsize(os.path.join(out, name)), 10000)
             with open(os.path.join(out, 'size_trend.md')) as f:
@@ -83,6 +87,23 @@ class TestTrends(unittest.TestCase):
         self.assertEqual(sum(r.startswith('| sphere | ≥ 1000 grains | relaxed | central dip D | -0.100 [')
                              for r in rows), 1)
         self.assertFalse(any('tetra' in r for r in rows))
+
+    def test_answer_table(self):
+        """One row per shape and size: pooled D = 1 − Σ disc / Σ ring over the piles (here 1 − 3/4 at
+        1000 grains, 1 − 6/5 at 2000), the slope's mean and t interval, a single pile marked as such,
+        a pile fed over another disc left out."""
+        def full(n, seed, disc, ring, slope, feed=None, **extra):
+            r = record(n, seed, 'relaxed', 1 - disc / ring, slope, feed=feed)
+            r.update(p_disc_Pa=disc, p_ring_Pa=ring, **extra)
+            return r
+        recs = [full(1000, 1, 1.0, 2.0, 26.0), full(1000, 2, 2.0, 2.0, 27.0), full(2000, 1, 3.0, 2.5, 28.0),
+                full(2000, 2, 3.0, 2.5, 28.0), full(2000, 3, 9.0, 1.0, 80.0, feed=0.004),
+                full(14000, 1, 1.0, 2.0, 26.0, dip_ci95=[0.2, 0.8], dip_confidence=0.995)]
+        rows = trends.answer_table_markdown(recs).splitlines()[2:]
+        self.assertEqual(len(rows), 3)
+        self.assertTrue(rows[0].startswith('| sphere | 1000 | 2 | 26.5° [20.1°, 32.9°] | +0.25 ['), rows[0])
+        self.assertTrue(rows[1].startswith('| sphere | 2000 | 2 | 28.0° [28.0°, 28.0°] | -0.20 ['), rows[1])
+        self.assertEqual(rows[2], '| sphere | 14000 | 1 | 26.0° | +0.50 [+0.20, +0.80] (over its sectors) | 99.5 % (one pile) | 0.500 |')
 
     def test_nothing_to_fit(self):
         recs = [record(1000, s, 'relaxed', 0.1 * s, 26.0) for s in (1, 2, 3)]

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..pile.protocol import DEFAULTS
 from . import figures as pf
-from .ensemble import by_shape, feed_radius_of, SHAPE_STYLE
+from .ensemble import by_shape, feed_radius_of, shape_stats, SHAPE_STYLE
 from .stats import size_trend
 
 #: observables whose size trend is reported: record key -> (name, unit, format of a value)
@@ -127,12 +127,56 @@ def fig_size_trend(records, trends, path, key='dip_D', epoch='relaxed'):
     return pf.save_figure(fig, path)
 
 
+def paper_fed(records):
+    """The records of piles fed over the paper's disc (the size and shape comparisons' piles)."""
+    return [r for r in records if np.isclose(feed_radius_of(r), DEFAULTS['feed_radius'])]
+
+
+def _ci(st, fmt):
+    if not st or st['n'] == 0 or not np.isfinite(st['mean']):
+        return '–'
+    if st['n'] < 2 or not np.all(np.isfinite(st['ci95'])):
+        return fmt % st['mean']
+    return (fmt + ' [' + fmt + ', ' + fmt + ']') % (st['mean'], st['ci95'][0], st['ci95'][1])
+
+
+def answer_table_markdown(records, epoch='relaxed'):
+    """The answer in one table: per grain shape and size, the piles, the flank slope (mean over
+    piles [95 % t]), the central dip D pooled over piles (delete-one-pile jackknife [95 %]) with the
+    one-sided confidence of a dip, and the packing fraction; a size with one pile gives its own
+    D with the interval over its sectors, marked as such (no spread over realisations exists)."""
+    rows = ['| shape | grains | piles | flank slope [95 %] | central dip D [95 %] | confidence of a dip | packing fraction |',
+            '| --- | --- | --- | --- | --- | --- | --- |']
+    mine = paper_fed(records)
+    groups = by_shape(mine)
+    for shape, (stats, _) in shape_stats(mine).items():
+        for key, g in stats.items():
+            n, ep = key.split('_', 1)
+            if ep != epoch:
+                continue
+            if g['n_runs'] >= 2:
+                d = g['dip_pooled']
+                dip = '%+.2f [%+.2f, %+.2f]' % (d['D'], d['ci95'][0], d['ci95'][1]) if np.isfinite(d['se']) else '–'
+                conf = '%.1f %%' % (100 * d['confidence_positive']) if np.isfinite(d['confidence_positive']) else '–'
+            else:
+                one = [r for r in groups[shape] if r['n_grains'] == int(n) and r['epoch'] == epoch][0]
+                ci = one.get('dip_ci95') or [float('nan')] * 2
+                dip = '%+.2f [%+.2f, %+.2f] (over its sectors)' % (one['dip_D'], ci[0], ci[1])
+                conf = '%.1f %% (one pile)' % (100 * one['dip_confidence']) if one.get('dip_confidence') is not None else '–'
+            rows.append('| %s | %s | %d | %s | %s | %s | %s |' % (
+                shape, n, g['n_runs'], _ci(g['slope_deg'], '%.1f°'), dip, conf, _ci(g['packing_fraction'], '%.3f')))
+    return '\n'.join(rows) + '\n'
+
+
 def analyse_trends(records, out_dir):
-    """Write ``size_trend.md`` and ``size_trend_{dip,slope}.png`` (relaxed piles) into ``out_dir``;
-    return the trends ({} when no shape has two sizes)."""
+    """Write ``answer_table.md`` (slope and D per shape and size, relaxed piles), ``size_trend.md``
+    and ``size_trend_{dip,slope}.png`` into ``out_dir``; return the trends ({} and nothing written
+    when no shape has two sizes)."""
     trends = size_trends(records)
     if not trends:
         return {}
+    with open(os.path.join(out_dir, 'answer_table.md'), 'w') as f:
+        f.write(answer_table_markdown(records))
     with open(os.path.join(out_dir, 'size_trend.md'), 'w') as f:
         f.write(trend_table_markdown(trends))
     fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_dip.png'), 'dip_D')
