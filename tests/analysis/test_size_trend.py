@@ -10,7 +10,7 @@ import unittest
 import numpy as np
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
-from yadecd.analysis.stats import linear_fit, size_trend, t_cdf, t_quantile, t_quantile_975
+from yadecd.analysis.stats import line_prediction, linear_fit, size_trend, t_cdf, t_quantile, t_quantile_975
 
 SIZES = np.repeat([300, 1000, 2000, 5000], 8).astype(float)   # the sphere ensembles' design
 BETA = 0.1                                                      # slope per decade of grains
@@ -126,6 +126,44 @@ class TestSizeTrend(unittest.TestCase):
             size_trend([1, 2, 3], [0.0, 1.0])
         with self.assertRaisesRegex(ValueError, 'positive'):
             size_trend([0, 1000], [0.1, 0.2])
+
+
+class TestLinePrediction(unittest.TestCase):
+    """Where a line puts one new pile, with the interval a single new value may fall in."""
+
+    def test_matrix_form(self):
+        """The same as s²·(1 + x0ᵀ(XᵀX)⁻¹x0) from the design matrix, at a point inside and one far outside."""
+        x = np.array([3.0, 3.0, 3.3, 3.3, 3.7, 3.7, 3.7])
+        y = np.array([0.1, 0.3, -0.2, 0.2, -0.1, -0.4, 0.0])
+        X = np.column_stack([np.ones_like(x), x])
+        coef = np.linalg.lstsq(X, y, rcond=None)[0]
+        s2 = ((y - X @ coef) ** 2).sum() / (len(x) - 2)
+        for x0 in (3.4, 4.146):
+            v = np.array([1.0, x0])
+            p = line_prediction(x, y, x0)
+            self.assertAlmostEqual(p['value'], v @ coef, places=12)
+            self.assertAlmostEqual(p['se'], math.sqrt(s2 * (1 + v @ np.linalg.inv(X.T @ X) @ v)), places=12)
+            self.assertAlmostEqual(p['ci95'][1] - p['value'], t_quantile(0.975, 5) * p['se'], places=12)
+        # extrapolating is wider than interpolating
+        self.assertGreater(line_prediction(x, y, 4.146)['se'], line_prediction(x, y, 3.4)['se'])
+
+    def test_coverage_of_a_new_pile(self):
+        """A new value at 14 000 grains from a line fitted on 1000-5000 grains (eight each): inside
+        the 95 % interval 95 % of the time (1 000 draws; 0.929-0.971 is three binomial errors)."""
+        rng = np.random.default_rng(21)
+        x = np.log10(np.repeat([1000.0, 2000.0, 5000.0], 8))
+        x0 = math.log10(14000)
+        hits = 0
+        for _ in range(1000):
+            y = 0.2 - 0.1 * x + rng.normal(size=x.size) * 0.25
+            p = line_prediction(x, y, x0)
+            y0 = 0.2 - 0.1 * x0 + rng.normal() * 0.25
+            hits += p['ci95'][0] <= y0 <= p['ci95'][1]
+        self.assertTrue(0.929 <= hits / 1000 <= 0.971, hits)
+
+    def test_degenerate(self):
+        self.assertTrue(math.isnan(line_prediction([1.0, 2.0], [0.0, 1.0], 3.0)['value']))
+        self.assertTrue(math.isnan(line_prediction([2.0, 2.0, 2.0], [0.0, 1.0, 2.0], 3.0)['se']))
 
 
 if __name__ == '__main__':

@@ -350,3 +350,27 @@ def size_trend(n_grains, values):
         out.update(slope_welch=bw, se_welch=sw, df_welch=df, ci95_welch=(bw - q * sw, bw + q * sw),
                    confidence_welch=conf(bw, sw, df))
     return out
+
+
+def line_prediction(x, y, x0):
+    """Where the least-squares line of ``y`` on ``x`` puts one new value at ``x0``, and how far a
+    single new value may fall from it: the 95 % prediction interval (Student's t, n − 2 degrees of
+    freedom; s·√(1 + 1/n + (x0 − x̄)²/Sxx), the line's own uncertainty at x0 included, which grows
+    away from the data: an extrapolation is wider than the scatter alone).
+
+    :returns: dict ``value``, ``se`` (of a new value), ``ci95``, ``df``; nan with fewer than 3
+        points or a single distinct x."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    nan = float('nan')
+    out = {'value': nan, 'se': nan, 'ci95': (nan, nan), 'df': len(x) - 2}
+    a, b, se_b = linear_fit(x, y)
+    if not math.isfinite(se_b):
+        return out
+    n = len(x)
+    s = math.sqrt(((y - a - b * x) ** 2).sum() / (n - 2))
+    sxx = ((x - x.mean()) ** 2).sum()
+    value = a + b * x0
+    se = s * math.sqrt(1 + 1 / n + (x0 - x.mean()) ** 2 / sxx)
+    q = t_quantile(0.975, n - 2)
+    return {'value': float(value), 'se': se, 'ci95': (value - q * se, value + q * se), 'df': n - 2}
