@@ -1,5 +1,7 @@
 """Statistics the pile analyses share: robust straight-line fits (bisquare, Theil–Sen, Huber),
-small-sample Student-t intervals, the jackknife of a ratio, and the first crossing of a series.
+small-sample Student-t intervals and quantiles, the jackknife of a ratio, the first crossing of a
+series, and the trend of a pile observable with size (a line through single piles, with pooled
+and Welch intervals, and the interval a new pile may fall in).
 """
 
 import math
@@ -261,7 +263,6 @@ def sweeps_to(history, thresholds):
             raise ValueError('sweeps_to: thresholds must be positive, not %r' % (th,))
         out.append(next((i + 1 for i, r in enumerate(history) if r <= th), None))
     return out
-
 
 
 def t_quantile(p, df):
