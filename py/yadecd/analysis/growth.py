@@ -16,9 +16,10 @@ import numpy as np
 
 from ..pile.protocol import DEFAULTS, feed_time
 from . import figures as pf
-from .ensemble import feed_radius_of, grain_shape, run_record
+from .ensemble import grain_shape, run_record
 from .snapshots import list_snapshots, load_snapshot, run_parameters
 from .stats import mean_interval
+from .trends import is_paper_fed
 
 #: bump when the cached growth records change meaning
 CACHE_VERSION = 1
@@ -66,8 +67,7 @@ def fed_reference(records, shape='sphere'):
     ensembles' answer at each size (a size with one pile is a growth curve's last point)."""
     by_n = {}
     for r in records:
-        if (r['epoch'] == 'feed' and grain_shape(r) == shape and r.get('dip_D') is not None
-                and np.isclose(feed_radius_of(r), DEFAULTS['feed_radius'])):
+        if r['epoch'] == 'feed' and grain_shape(r) == shape and r.get('dip_D') is not None and is_paper_fed(r):
             by_n.setdefault(r['n_grains'], []).append(r['dip_D'])
     return {n: mean_interval(v) for n, v in sorted(by_n.items()) if len(v) >= 2}
 

@@ -25,7 +25,6 @@ import numpy as np
 
 from .. import analysis as pa
 from ..io import jsonable
-from ..pile.protocol import DEFAULTS
 from ..runs import ensemble as ens
 
 # name -> (time step [s], tolerance, further pile.py options); 'paper' is the reference
@@ -80,9 +79,9 @@ def is_reference(record, n_grains, grain_shape='sphere'):
     """Whether a stored per-run record belongs to the reference of a study at ``n_grains`` grains of
     ``grain_shape``: that size and shape, fed over the paper's disc (records of another feed
     radius are another experiment, whatever their time step)."""
-    from .ensemble import feed_radius_of, grain_shape as shape_of
-    return (record['n_grains'] == n_grains and shape_of(record) == grain_shape
-            and math.isclose(feed_radius_of(record), DEFAULTS['feed_radius'], rel_tol=1e-9))
+    from .ensemble import grain_shape as shape_of
+    from .trends import is_paper_fed
+    return record['n_grains'] == n_grains and shape_of(record) == grain_shape and is_paper_fed(record)
 
 
 def _finite(values):

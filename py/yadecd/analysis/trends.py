@@ -27,11 +27,17 @@ KEYS = {'dip_D': ('central dip D', '', '%+.3f'), 'slope_deg': ('flank slope', 'Â
 RANGES = {'all sizes': 0, 'â‰¥ 1000 grains': 1000}
 
 
+def is_paper_fed(record):
+    """Whether a per-run record's pile was fed over the paper's disc (0.8 cm; records written
+    before the feed radius was kept were): the piles the size and shape comparisons take, since
+    another feed radius is another experiment."""
+    return bool(np.isclose(feed_radius_of(record), DEFAULTS['feed_radius']))
+
+
 def trend_points(records, epoch, min_grains=0):
     """(grain counts, {key: values}) of the records at ``epoch`` of piles of ``min_grains`` or more,
     fed over the paper's disc; a value the record lacks is nan."""
-    mine = [r for r in records if r['epoch'] == epoch and r['n_grains'] >= min_grains
-            and np.isclose(feed_radius_of(r), DEFAULTS['feed_radius'])]
+    mine = [r for r in records if r['epoch'] == epoch and r['n_grains'] >= min_grains and is_paper_fed(r)]
     n = np.array([r['n_grains'] for r in mine], dtype=float)
     vals = {k: np.array([np.nan if r.get(k) is None else r[k] for r in mine], dtype=float) for k in KEYS}
     return n, vals
@@ -104,7 +110,7 @@ def fig_size_trend(records, trends, path, key='dip_D', epoch='relaxed'):
             if t is None or not np.isfinite(t['slope']) or tuple(t['sizes']) in shown:
                 continue
             shown.add(tuple(t['sizes']))
-            x = np.log10(np.array([k for k, c in t['sizes'].items() for _ in range(c)], dtype=float))
+            x = np.log10(np.array([size for size, c in t['sizes'].items() for _ in range(c)], dtype=float))
             xs = np.linspace(x.min(), x.max(), 20)
             ax.plot(10 ** xs, t['intercept'] + t['slope'] * xs, '-' if j == 0 else '--', color=colour, lw=1.2,
                     label='%s, %s: %.3g per decade, 95 %% [%.3g, %.3g], confidence %.0f %%' % (
@@ -129,7 +135,7 @@ def fig_size_trend(records, trends, path, key='dip_D', epoch='relaxed'):
 
 def paper_fed(records):
     """The records of piles fed over the paper's disc (the size and shape comparisons' piles)."""
-    return [r for r in records if np.isclose(feed_radius_of(r), DEFAULTS['feed_radius'])]
+    return [r for r in records if is_paper_fed(r)]
 
 
 def _ci(st, fmt):
