@@ -1,6 +1,6 @@
 """Carrying a pile run between machines (yadecd.runs.carry) on constructed run directories: which
 snapshots go, the checkpoint reduced to state.npz, a damaged newest unit, a destination replaced
-whole, and refusals. The resume of a carried real run is tests/runs/test_runstate.py
+whole, refusals, and the watch that carries a running pile again until it is done. The resume of a carried real run is tests/runs/test_runstate.py
 TestResume.test_carried_resume."""
 import json
 import os
@@ -11,7 +11,7 @@ import tempfile
 import unittest
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
-from yadecd.runs.carry import carry, chosen_snapshots, snapshot_time
+from yadecd.runs.carry import carry, carry_if_changed, chosen_snapshots, is_done, snapshot_time, up_to_date, watch
 from yadecd.runs.checkpoint import CheckpointError, CheckpointStore
 
 QUIET = dict(log=lambda s: None)
@@ -48,7 +48,7 @@ class TestSnapshotChoice(unittest.TestCase):
                 chosen_snapshots([snap(1)], bad)
 
 
-class TestCarry(unittest.TestCase):
+class RunDir(unittest.TestCase):
     """A constructed run directory: run.json, progress.csv, snapshots, two checkpoint units."""
 
     def setUp(self):
@@ -79,6 +79,9 @@ class TestCarry(unittest.TestCase):
             with open(path, 'wb') as f:
                 f.write(content)
         return write
+
+
+class TestCarry(RunDir):
 
     def test_copy(self):
         record = carry(self.src, self.dest, snap_every=2, **QUIET)
@@ -145,6 +148,84 @@ class TestCarry(unittest.TestCase):
         bad = subprocess.run([python, script, self.tmp, self.dest], capture_output=True, text=True)
         self.assertEqual(bad.returncode, 1)
         self.assertIn('no run.json', bad.stderr)
+
+
+class TestWatch(RunDir):
+    """``watch`` (``pile_carry.py --every``) on the constructed run while it goes on: each round
+    carries only what moved on, a round that cannot carry is retried, and the watch ends once the
+    finished run is carried."""
+
+    def finish(self):
+        with open(os.path.join(self.src, 'snap_0004.000.npz'), 'wb') as f:
+            f.write(b'snapshot 4')
+        with open(os.path.join(self.src, 'run.json'), 'w') as f:
+            json.dump({'n_grains': 10, 'rate': 5.0, 'wall_time_s': 40.0, 'finished': True}, f)
+
+    def test_rounds(self):
+        """Round 1 carries, round 2 finds nothing new, round 3 a new checkpoint, round 4 nothing,
+        round 5 the end: five rounds, four sleeps of the given minutes."""
+        events = {2: lambda: None,
+                  3: lambda: CheckpointStore(self.src).write({'state.npz': self.writer(b'state 3')},
+                                                             {'time': 3.0, 'iter': 300, 'wall_s': 30.0}),
+                  5: self.finish}
+        lines, sleeps = [], []
+
+        def sleep(seconds):
+            sleeps.append(seconds)
+            events.get(len(sleeps) + 1, lambda: None)()
+
+        rounds = watch(self.src, self.dest, 0.5, snap_every=2, log=lines.append, sleep=sleep)
+        self.assertEqual(rounds, 5)
+        self.assertEqual(sleeps, [30.0] * 4)
+        outcomes = [ln.split(': ')[-1] for ln in lines if ' carry of ' in ln]
+        self.assertEqual(outcomes, ['carried', 'unchanged', 'carried', 'unchanged', 'carried'])
+        self.assertTrue(is_done(self.dest))
+        self.assertEqual(CheckpointStore(self.dest).latest()[0], 3)
+        self.assertIn(snap(4), os.listdir(self.dest))
+
+    def test_unchanged_leaves_the_copy(self):
+        self.assertEqual(carry_if_changed(self.src, self.dest, **QUIET), 'carried')
+        ino = os.stat(os.path.join(self.dest, 'run.json')).st_ino
+        self.assertTrue(up_to_date(self.src, self.dest))
+        self.assertEqual(carry_if_changed(self.src, self.dest, **QUIET), 'unchanged')
+        self.assertEqual(os.stat(os.path.join(self.dest, 'run.json')).st_ino, ino)
+        # a copy made with another snapshot choice is not up to date for this one
+        self.assertFalse(up_to_date(self.src, self.dest, snap_every=2))
+
+    def test_failed_round_retried(self):
+        """No checkpoint yet at the first round: named, not fatal; carried once one is written."""
+        shutil.rmtree(os.path.join(self.src, 'ckpt'))
+        lines = []
+
+        def sleep(seconds):
+            if len(lines) == 1:
+                CheckpointStore(self.src).write({'state.npz': self.writer(b'state 1')},
+                                                {'time': 1.0, 'iter': 100, 'wall_s': 10.0})
+            else:
+                self.finish()
+
+        rounds = watch(self.src, self.dest, 1, log=lambda m: lines.append(m) if ' carry of ' in m else None, sleep=sleep)
+        self.assertEqual(rounds, 3)
+        self.assertRegex(lines[0], r'not carried \(CheckpointError: .*no checkpoint yet')
+        self.assertTrue(lines[1].endswith(': carried') and lines[2].endswith(': carried'))
+        for bad in (0, -1, None, float('nan')):
+            with self.assertRaisesRegex(ValueError, 'every must be a positive'):
+                watch(self.src, self.dest, bad, **QUIET)
+
+    def test_every_command_line(self):
+        """``pile_carry.py --every``: on a finished run one round carries it and the command ends;
+        bad intervals are named (argparse's exit 2)."""
+        self.finish()
+        script = os.path.join(SCRIPTS, 'pile_carry.py')
+        python = '/usr/bin/python3' if os.path.exists('/usr/bin/python3') else sys.executable
+        r = subprocess.run([python, script, self.src, self.dest, '--every', '0.01'], capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertRegex(r.stdout, r'carry of .*run: carried$')
+        self.assertTrue(is_done(self.dest))
+        for bad, culprit in ((['--every', '0'], '--every'), (['--snap-every', '-1'], '--snap-every')):
+            r = subprocess.run([python, script, self.src, self.dest] + bad, capture_output=True, text=True, timeout=60)
+            self.assertEqual(r.returncode, 2)
+            self.assertIn(culprit, r.stderr)
 
 
 if __name__ == '__main__':

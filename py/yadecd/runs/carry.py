@@ -19,6 +19,10 @@ back to a working directory is the same operation. The destination is written un
 temporary name and swapped in whole, so an interrupted carry leaves the previous copy intact;
 ``CARRIED.json`` in it records the source, the checkpoint, and what was left out.
 
+A run carried while it goes on is carried again only when it has moved on
+(:func:`carry_if_changed`), and :func:`watch` does so every few minutes until the run is done:
+what ``pile_carry.py --every`` runs beside a long pile.
+
 Pure Python (no YADE, no numpy): it runs under any interpreter.
 """
 import json
@@ -143,3 +147,63 @@ def carry(src, dest, snap_every=None, log=print):
         % (src, dest, seq, when, len(snaps), len(record['snapshots_left_out']),
            ', without ' + ', '.join(dropped) if dropped else ''))
     return record
+
+
+def is_done(run_dir):
+    """True when the pile run in ``run_dir`` finished: its run.json has ``wall_time_s`` and
+    ``finished`` (written after its last step) and a snapshot exists."""
+    path = os.path.join(run_dir, 'run.json')
+    if not os.path.exists(path):
+        return False
+    try:
+        with open(path) as f:
+            p = json.load(f)
+    except (OSError, ValueError):
+        return False
+    return 'wall_time_s' in p and p.get('finished', True) and any(n.startswith(SNAP_PREFIX) for n in os.listdir(run_dir))
+
+
+def up_to_date(src, dest, snap_every=None):
+    """True when ``dest`` is a carried copy of ``src`` (its CARRIED.json) that holds the newest
+    valid checkpoint of ``src``, the snapshots :func:`carry` would take now and ``src``'s finished
+    state: carrying again would copy the same things."""
+    try:
+        with open(os.path.join(dest, RECORD)) as f:
+            before = json.load(f)
+    except (OSError, ValueError):
+        return False
+    latest = CheckpointStore(src).latest()
+    return (latest is not None and before.get('checkpoint') == latest[0] and is_done(dest) == is_done(src)
+            and before.get('snapshots') == snapshots_to_carry(src, snap_every))
+
+
+def carry_if_changed(src, dest, snap_every=None, log=print):
+    """:func:`carry` ``src`` to ``dest`` unless the copy is :func:`up_to_date` (then ``dest`` is
+    not touched). Returns ``'carried'`` or ``'unchanged'``; raises as :func:`carry` does."""
+    if os.path.exists(os.path.join(src, 'run.json')) and up_to_date(src, dest, snap_every):
+        return 'unchanged'
+    carry(src, dest, snap_every=snap_every, log=log)
+    return 'carried'
+
+
+def watch(src, dest, every, snap_every=None, log=print, sleep=time.sleep):
+    """Carry ``src`` to ``dest`` now and every ``every`` minutes (:func:`carry_if_changed`) until
+    the run is done and its finished state carried. A round that cannot carry (no checkpoint yet,
+    a checkpoint pruned while it was copied) is logged and tried again at the next round.
+
+    :returns: the number of rounds made.
+    :raises ValueError: ``every`` is not a positive number of minutes.
+    """
+    if not (isinstance(every, (int, float)) and every > 0):
+        raise ValueError('watch: every must be a positive number of minutes, not %r' % (every,))
+    rounds = 0
+    while True:
+        rounds += 1
+        try:
+            outcome = carry_if_changed(src, dest, snap_every=snap_every, log=log)
+        except (OSError, ValueError, RuntimeError) as e:      # CheckpointError is a RuntimeError
+            outcome = 'not carried (%s: %s)' % (type(e).__name__, e)
+        log('%s carry of %s: %s' % (time.strftime('%H:%M:%S'), src, outcome))
+        if is_done(src) and is_done(dest) and up_to_date(src, dest, snap_every):
+            return rounds
+        sleep(60 * every)

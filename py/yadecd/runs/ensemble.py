@@ -28,6 +28,7 @@ import time
 from ..io import write_json_atomic
 from ..pile.protocol import DEFAULTS, feed_time
 from . import cost as runcost
+from .carry import is_done
 
 RATE_DEFAULT = DEFAULTS['rate']     # grains per second
 DT_DEFAULT = DEFAULTS['dt']         # s
@@ -68,19 +69,6 @@ def parse_seeds(text):
     if len(set(seeds)) != len(seeds):
         raise ValueError('seeds repeat in %r' % text)
     return seeds
-
-
-def is_done(run_dir):
-    """True when the run finished: run.json has wall_time_s and a snapshot exists."""
-    path = os.path.join(run_dir, 'run.json')
-    if not os.path.exists(path):
-        return False
-    try:
-        with open(path) as f:
-            p = json.load(f)
-    except (OSError, ValueError):
-        return False
-    return 'wall_time_s' in p and p.get('finished', True) and any(n.startswith('snap_') for n in os.listdir(run_dir))
 
 
 def _tail(path, n=12):
@@ -331,7 +319,7 @@ def carry_ensemble(root, dest, snap_every=None, log=print):
     :returns: dict name -> ``'carried'``, ``'unchanged'``, ``'no checkpoint'``, ``'not started'``
         or the error's text.
     """
-    from .carry import RECORD, carry, snapshots_to_carry
+    from .carry import carry_if_changed
     from .checkpoint import CheckpointStore
     ens = Ensemble(root)
     if not os.path.exists(ens.path):
@@ -344,22 +332,11 @@ def carry_ensemble(root, dest, snap_every=None, log=print):
         if not os.path.exists(os.path.join(src, 'run.json')):
             outcome[name] = 'not started'
             continue
-        latest = CheckpointStore(src).latest()
-        if latest is None:
+        if CheckpointStore(src).latest() is None:
             outcome[name] = 'no checkpoint'
             continue
         try:
-            with open(os.path.join(out, RECORD)) as f:
-                before = json.load(f)
-        except (OSError, ValueError):
-            before = None
-        if (before is not None and before.get('checkpoint') == latest[0] and is_done(out) == is_done(src)
-                and before.get('snapshots') == snapshots_to_carry(src, snap_every)):
-            outcome[name] = 'unchanged'
-            continue
-        try:
-            carry(src, out, snap_every=snap_every, log=log)
-            outcome[name] = 'carried'
+            outcome[name] = carry_if_changed(src, out, snap_every=snap_every, log=log)
         except (OSError, ValueError, RuntimeError) as e:      # CheckpointError is a RuntimeError
             outcome[name] = '%s: %s' % (type(e).__name__, e)
             log('carry: %s not carried (%s)' % (name, outcome[name]))
