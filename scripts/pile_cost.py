@@ -5,7 +5,8 @@ progress.csv and segments.csv (module yadecd.runs.cost).
 
     python3 scripts/pile_cost.py RUN_DIR [--window 2] [--out DIR]
 
-Prints a table and writes cost.csv and cost.png into DIR (default RUN_DIR). A run carried between
+Prints a table and, for an unfinished run, where it stands and about how much wall time it still
+needs at its recent pace; writes cost.csv and cost.png into DIR (default RUN_DIR). A run carried between
 machines ran on hosts of different speed: the ns per contact-sweep column tells them apart. Needs numpy and matplotlib
 only (Debian's /usr/bin/python3 or YADE's).
 """
@@ -42,6 +43,22 @@ def figure(rows, segments, path, title):
     return pf.save_figure(fig, path)
 
 
+def standing(run):
+    """One line: finished, or where the run stands and the wall time it still needs at its recent
+    pace (yadecd.runs.ensemble.progress_of, the estimate ``pile_ensemble.py status`` gives)."""
+    from yadecd.runs import ensemble as ens
+    if ens.is_done(run):
+        return 'finished'
+    now = ens.progress_of(run)
+    if now is None:
+        return 'not started'
+    line = 'stands at t = %.3f s of %s s, %d grains, %.2f h of wall time so far' % (
+        now['time_s'], '?' if now['end_s'] is None else '%.3f' % now['end_s'], now['grains'], now['wall_s'] / 3600)
+    if now['remaining_s'] is not None:
+        line += '; about %.1f h more at its recent pace (a planning figure)' % (now['remaining_s'] / 3600)
+    return line
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('run')
@@ -72,6 +89,7 @@ def main(argv=None):
     print('wall time in these windows %.0f s (%.2f h)' % (wall, wall / 3600))
     for k, s in enumerate(segments):
         print('segment %d: from t = %.3f s, %s thread(s), %s, %s' % (k, s['t_start_s'], s['threads'], s['host'], s['cpu']))
+    print(standing(args.run))
     out = args.out or args.run
     write_csv(os.path.join(out, 'cost.csv'), rows)
     path = figure(rows, segments, os.path.join(out, 'cost.png'),

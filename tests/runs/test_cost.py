@@ -1,7 +1,11 @@
 """What a run's wall time went into (yadecd.runs.cost) on constructed progress records with known
 costs: two segments on hosts of different speed, the interval that straddles a resume left out,
-sparse windows dropped, and the segment log written and read back."""
+sparse windows dropped, the segment log written and read back, and scripts/pile_cost.py's line
+on where a run stands."""
+import json
 import os
+import subprocess
+import sys
 import tempfile
 import unittest
 
@@ -132,6 +136,36 @@ class TestRemainingWall(unittest.TestCase):
         slow_start = dict(rec, wall_s=rec['wall_s'] * np.where(rec['time_s'] < 3.0, 3.0, 1.0)
                           + np.where(rec['time_s'] >= 3.0, 2 * rec['wall_s'][rec['time_s'] < 3.0][-1], 0.0))
         self.assertAlmostEqual(runcost.remaining_wall(slow_start, 9.0, 8.0), whole, delta=1e-9 * whole)
+
+
+class TestPileCostCommand(unittest.TestCase):
+    """``pile_cost.py RUN``: the window table, then where an unfinished run stands and the wall
+    time it still needs at its recent pace (the ensemble status's estimate); 'finished' once done."""
+
+    def test_standing_line(self):
+        script = os.path.join(SCRIPTS, 'pile_cost.py')
+        python = '/usr/bin/python3' if os.path.exists('/usr/bin/python3') else sys.executable
+        with tempfile.TemporaryDirectory() as d:
+            params = {'n_grains': 1000, 'rate': 200.0, 'dt': 5e-4, 'relax': 1.0}
+            with open(os.path.join(d, 'run.json'), 'w') as f:
+                json.dump(params, f)
+            with open(os.path.join(d, 'progress.csv'), 'w') as f:      # to 3 s at c(t) = 40 t s/s
+                f.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
+                for x in [0.05 * k for k in range(1, 61)]:
+                    f.write('%.2f,%d,%d,50,1e-3,%.3f\n' % (x, 200 * x, 600 * x, 20 * x * x))
+            run = lambda: subprocess.run([python, script, d, '--window', '0.5', '--out', d],  # noqa: E731
+                                         capture_output=True, text=True, timeout=120)
+            r = run()
+            self.assertEqual(r.returncode, 0, r.stderr)
+            # the feed ends near 5 s, then 1 s of relaxation: 20 (5² − 3²) + 40·5·1 = 520 s more
+            self.assertRegex(r.stdout, r'stands at t = 3\.000 s of 6\.\d+ s, 600 grains, 0\.05 h of wall time so far; '
+                                       r'about 0\.1 h more at its recent pace')
+            with open(os.path.join(d, 'run.json'), 'w') as f:
+                json.dump(dict(params, wall_time_s=700.0, finished=True), f)
+            open(os.path.join(d, 'snap_0006.000.npz'), 'w').close()
+            r = run()
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertRegex(r.stdout, r'\nfinished\n')
 
 
 if __name__ == '__main__':
