@@ -10,8 +10,9 @@ the problem is the engine's exactly.
 FCLIB file layout written here (what ``fclib_write_local`` / ``fclib_write_solution`` write):
 ``/fclib_local/spacedim`` (int 3), ``/fclib_local/W/{nzmax, m, n, nz, p, i, x}`` (compressed
 columns, ``nz = -1``, 32-bit integers), ``/fclib_local/vectors/{q, mu}``,
-``/fclib_local/info/{title, description, math_info}`` (strings) and, when a solution is given,
-``/solution/{u, r}``.
+``/fclib_local/info/{title, description, math_info}`` (strings), when a solution is given,
+``/solution/{u, r}``, and when a guess is given (the engine's warm start, say),
+``/guesses/number_of_guesses`` = 1 and ``/guesses/1/{u, r}`` (what ``fclib_write_guesses`` writes).
 
 Pure numpy/scipy/h5py; Siconos (Debian's ``python3-siconos``) only in :func:`solve_siconos`.
 """
@@ -38,9 +39,10 @@ def local_problem(engine=None):
     return dict(W=W, q=raw['q'], mu=raw['mu'], r=r, u=W @ r + raw['q'], ids=raw['ids'])
 
 
-def write(path, problem, title='', description='', math_info='', solution=True):
+def write(path, problem, title='', description='', math_info='', solution=True, guess=None):
     """Write ``problem`` (a :func:`local_problem` dict) to the FCLIB HDF5 file ``path``
-    (overwritten). ``solution``: also store the engine's (r, u) as ``/solution``."""
+    (overwritten). ``solution``: also store the engine's (r, u) as ``/solution``. ``guess``: an
+    impulse vector (3n) stored as FCLIB's one guess, with its u = W r + q."""
     import h5py
     W = sp.csc_matrix(problem['W'])
     W.sum_duplicates()
@@ -62,11 +64,19 @@ def write(path, problem, title='', description='', math_info='', solution=True):
         if solution:
             f['/solution/r'] = np.asarray(problem['r'], float)
             f['/solution/u'] = np.asarray(problem['u'], float)
+        if guess is not None:
+            g = np.asarray(guess, float)
+            if g.shape != q.shape:
+                raise ValueError('fclib.write: the guess has %d entries, the problem %d' % (g.size, q.size))
+            f['/guesses/number_of_guesses'] = i32([1])
+            f['/guesses/1/r'] = g
+            f['/guesses/1/u'] = W @ g + q
 
 
 def read(path):
     """Read a local FCLIB problem: dict with ``W`` (CSR), ``q``, ``mu`` and, when stored,
-    ``r`` and ``u`` of ``/solution``. Compressed-column, compressed-row and triplet W."""
+    ``r`` and ``u`` of ``/solution`` and ``guess`` (the r of the first of ``/guesses``).
+    Compressed-column, compressed-row and triplet W."""
     import h5py
     with h5py.File(path, 'r') as f:
         if '/fclib_local' not in f:
@@ -85,6 +95,8 @@ def read(path):
         out = dict(W=W.tocsr(), q=f['/fclib_local/vectors/q'][()], mu=f['/fclib_local/vectors/mu'][()])
         if '/solution' in f:
             out['r'], out['u'] = f['/solution/r'][()], f['/solution/u'][()]
+        if '/guesses/1/r' in f:
+            out['guess'] = f['/guesses/1/r'][()]
     return out
 
 
@@ -115,15 +127,25 @@ def project_cone(z, mu):
     return out
 
 
-def solve_siconos(W, q, mu, tol=1e-8, max_iter=100000, r0=None):
-    """Solve with Siconos' NSGS (``SICONOS_FRICTION_3D_NSGS``) from ``r0`` (default 0).
+#: Siconos' 3D frictional-contact solvers :func:`solve_siconos` offers, by short name
+#: (``SICONOS_FRICTION_3D_<name>``; Acary, Brémond & Huber, INRIA RR-9118, 2017, compare them):
+#: nonsmooth Gauss–Seidel, ADMM, semismooth Newton on Alart–Curnier's function, the proximal-point
+#: method, extragradient and fixed-point projection on the variational inequality.
+SICONOS_SOLVERS = ('NSGS', 'ADMM', 'NSN_AC', 'PROX', 'VI_EG', 'VI_FPP')
+
+
+def solve_siconos(W, q, mu, tol=1e-8, max_iter=100000, r0=None, solver='NSGS'):
+    """Solve with Siconos (``SICONOS_FRICTION_3D_<solver>``, one of :data:`SICONOS_SOLVERS`;
+    default NSGS) from ``r0`` (default 0), at Siconos' default options but ``tol`` and ``max_iter``.
     Returns dict r, u, info (0: converged), iterations, error (Siconos' own), seconds."""
     import siconos.numerics as sn
+    if solver not in SICONOS_SOLVERS:
+        raise ValueError('solve_siconos: unknown solver %r (one of %s)' % (solver, ', '.join(SICONOS_SOLVERS)))
     n = len(mu)
     with warnings.catch_warnings():  # scipy keeps 32-bit indices; Siconos converts (untimed)
         warnings.filterwarnings('ignore', message='Performance warning')
         problem = sn.FrictionContactProblem(3, n, sp.coo_matrix(W), np.asarray(q, float), np.asarray(mu, float))
-    opts = sn.SolverOptions(sn.SICONOS_FRICTION_3D_NSGS)
+    opts = sn.SolverOptions(getattr(sn, 'SICONOS_FRICTION_3D_' + solver))
     opts.iparam[sn.SICONOS_IPARAM_MAX_ITER] = int(max_iter)
     opts.dparam[sn.SICONOS_DPARAM_TOL] = float(tol)
     r = np.zeros(3 * n) if r0 is None else np.array(r0, float)
