@@ -1,6 +1,7 @@
 """Carrying a pile run between machines (yadecd.runs.carry) on constructed run directories: which
 snapshots go, the checkpoint reduced to state.npz, a damaged newest unit, a destination replaced
-whole, refusals, and the watch that carries a running pile again until it is done. The resume of a carried real run is tests/runs/test_runstate.py
+whole, refusals, the watch that carries a running pile again until it is done, and the stop
+that ends a pile's process and carries its last checkpoint. The resume of a carried real run is tests/runs/test_runstate.py
 TestResume.test_carried_resume."""
 import json
 import os
@@ -11,7 +12,8 @@ import tempfile
 import unittest
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
-from yadecd.runs.carry import carry, carry_if_changed, chosen_snapshots, is_done, snapshot_time, up_to_date, watch
+from yadecd.runs.carry import (carry, carry_if_changed, chosen_snapshots, is_done, processes_running, snapshot_time,
+                               stop_and_carry, up_to_date, watch)
 from yadecd.runs.checkpoint import CheckpointError, CheckpointStore
 
 QUIET = dict(log=lambda s: None)
@@ -223,6 +225,82 @@ class TestWatch(RunDir):
         self.assertRegex(r.stdout, r'carry of .*run: carried$')
         self.assertTrue(is_done(self.dest))
         for bad, culprit in ((['--every', '0'], '--every'), (['--snap-every', '-1'], '--snap-every')):
+            r = subprocess.run([python, script, self.src, self.dest] + bad, capture_output=True, text=True, timeout=60)
+            self.assertEqual(r.returncode, 2)
+            self.assertIn(culprit, r.stderr)
+
+
+# A stand-in for pile.py: runs "--out RUN" until SIGTERM, then writes one more checkpoint (as
+# the pile does on the signal) and exits; it says "ready" once its handler is in place.
+FAKE_PILE = """
+import signal, sys, time
+sys.path.insert(0, sys.argv[1])
+from yadecd.runs.checkpoint import CheckpointStore
+args = sys.argv[2:]
+run = args[args.index('--out') + 1] if '--out' in args else [a[6:] for a in args if a.startswith('--out=')][0]
+def stop(signum, frame):
+    def write(path):
+        with open(path, 'wb') as f:
+            f.write(b'state at the signal')
+    CheckpointStore(run).write({'state.npz': write}, {'time': 2.5, 'iter': 250, 'wall_s': 25.0})
+    sys.exit(0)
+signal.signal(signal.SIGTERM, stop)
+print('ready', flush=True)
+time.sleep(120)
+"""
+
+
+class TestStop(RunDir):
+    """``stop_and_carry`` (``pile_carry.py --stop``) on a stand-in pile process."""
+
+    def start(self, out_arg):
+        from repo_package import REPO as repo
+        p = subprocess.Popen([sys.executable, '-c', FAKE_PILE, os.path.join(repo, 'py')] + out_arg,
+                             cwd=self.tmp, stdout=subprocess.PIPE, text=True)
+        self.assertEqual(p.stdout.readline().strip(), 'ready')
+        self.addCleanup(p.kill)
+        return p
+
+    def test_stop_then_carry(self):
+        """The process running the run (given --out relative to its own directory) is found,
+        stopped, and its last checkpoint carried; another run's process is left alone."""
+        other = os.path.join(self.tmp, 'other')
+        os.makedirs(other)
+        p = self.start(['--out', 'run'])
+        q = self.start(['--out=%s' % other])
+        self.assertEqual(processes_running(self.src), [p.pid])
+        self.assertEqual(processes_running(other), [q.pid])
+        lines = []
+        record = stop_and_carry(self.src, self.dest, log=lines.append, timeout=60)
+        self.assertEqual(p.wait(timeout=10), 0)
+        self.assertEqual((record['checkpoint'], record['time']), (3, 2.5))
+        self.assertIn('SIGTERM sent to process %d' % p.pid, '\n'.join(lines))
+        self.assertIsNone(q.poll())                       # the other run's pile still runs
+        self.assertEqual(processes_running(self.src), [])
+        # nothing runs it any more: carried as it is
+        lines = []
+        stop_and_carry(self.src, self.dest, log=lines.append)
+        self.assertIn('no process runs', lines[0])
+
+    def test_a_pile_that_does_not_stop(self):
+        """A process that ignores SIGTERM: named after the timeout, nothing carried."""
+        ignoring = "import signal, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); print('ready', flush=True); time.sleep(60)"
+        p = subprocess.Popen([sys.executable, '-c', ignoring, '--out', self.src], stdout=subprocess.PIPE, text=True)
+        self.addCleanup(p.kill)
+        self.assertEqual(p.stdout.readline().strip(), 'ready')
+        with self.assertRaisesRegex(RuntimeError, r'still run .* after SIGTERM; nothing carried'):
+            stop_and_carry(self.src, self.dest, timeout=1, log=lambda m: None)
+        self.assertFalse(os.path.exists(self.dest))
+
+    def test_command_line(self):
+        script = os.path.join(SCRIPTS, 'pile_carry.py')
+        python = '/usr/bin/python3' if os.path.exists('/usr/bin/python3') else sys.executable
+        p = self.start(['--out', self.src])
+        r = subprocess.run([python, script, self.src, self.dest, '--stop', '--snap-every', '2'], capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn('SIGTERM sent to process %d' % p.pid, r.stdout)
+        self.assertIn('checkpoint 3 at t=2.500 s', r.stdout)
+        for bad, culprit in ((['--stop', '--every', '5'], 'do not go together'), (['--stop', '--timeout', '0'], '--timeout')):
             r = subprocess.run([python, script, self.src, self.dest] + bad, capture_output=True, text=True, timeout=60)
             self.assertEqual(r.returncode, 2)
             self.assertIn(culprit, r.stderr)

@@ -21,13 +21,16 @@ temporary name and swapped in whole, so an interrupted carry leaves the previous
 
 A run carried while it goes on is carried again only when it has moved on
 (:func:`carry_if_changed`), and :func:`watch` does so every few minutes until the run is done:
-what ``pile_carry.py --every`` runs beside a long pile.
+what ``pile_carry.py --every`` runs beside a long pile. :func:`stop_and_carry` ends a session's
+pile: SIGTERM to the process that runs it (the pile checkpoints and stops), then the carry
+(``pile_carry.py --stop``).
 
 Pure Python (no YADE, no numpy): it runs under any interpreter.
 """
 import json
 import os
 import shutil
+import signal
 import time
 
 from .checkpoint import POINTER, CheckpointError, CheckpointStore, sha256
@@ -207,3 +210,66 @@ def watch(src, dest, every, snap_every=None, log=print, sleep=time.sleep):
         if is_done(src) and is_done(dest) and up_to_date(src, dest, snap_every):
             return rounds
         sleep(60 * every)
+
+
+def processes_running(run_dir, proc='/proc'):
+    """Process ids whose command line holds ``--out PATH`` (or ``--out=PATH``) with PATH the run
+    directory ``run_dir`` (a relative PATH taken from that process's working directory): the
+    pile.py processes that run it, whatever launched them. Linux's /proc; the caller excluded."""
+    target = os.path.realpath(run_dir)
+    found = []
+    for name in os.listdir(proc):
+        if not name.isdigit() or int(name) == os.getpid():
+            continue
+        try:
+            with open(os.path.join(proc, name, 'cmdline'), 'rb') as f:
+                args = [a.decode(errors='replace') for a in f.read().split(b'\0')]
+            cwd = os.readlink(os.path.join(proc, name, 'cwd'))
+        except OSError:                                   # gone meanwhile, or not ours to read
+            continue
+        for k, arg in enumerate(args):
+            path = arg[len('--out='):] if arg.startswith('--out=') else (args[k + 1] if arg == '--out' and k + 1 < len(args) else None)
+            if path and os.path.realpath(os.path.join(cwd, path)) == target:
+                found.append(int(name))
+                break
+    return sorted(found)
+
+
+def stop_and_carry(src, dest, snap_every=None, timeout=600.0, log=print, proc='/proc'):
+    """End a pile for the session: SIGTERM every process that runs ``src``
+    (:func:`processes_running`; the pile writes a checkpoint and stops), wait until they are gone,
+    then :func:`carry` ``src`` to ``dest`` (its newest checkpoint: the one written on the signal).
+
+    :returns: the record of the carry.
+    :raises RuntimeError: a process still runs ``timeout`` seconds after the signal (nothing is
+        carried: the newest checkpoint would not be the last).
+    """
+    pids = processes_running(src, proc)
+    if not pids:
+        log('stop: no process runs %s; carrying it as it is' % src)
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGTERM)
+            log('stop: SIGTERM sent to process %d (it runs %s)' % (pid, src))
+        except ProcessLookupError:
+            pass
+    end = time.monotonic() + timeout
+    while True:
+        alive = [pid for pid in pids if os.path.exists(os.path.join(proc, str(pid)))
+                 and not _zombie(os.path.join(proc, str(pid)))]
+        if not alive:
+            break
+        if time.monotonic() > end:
+            raise RuntimeError('stop: process(es) %s still run %s %.0f s after SIGTERM; nothing carried'
+                               % (', '.join(map(str, alive)), src, timeout))
+        time.sleep(0.5)
+    return carry(src, dest, snap_every=snap_every, log=log)
+
+
+def _zombie(proc_dir):
+    """True when the process of ``proc_dir`` has exited and waits for its parent to reap it."""
+    try:
+        with open(os.path.join(proc_dir, 'stat')) as f:
+            return f.read().rsplit(')', 1)[1].split()[0] == 'Z'
+    except (OSError, IndexError):
+        return True
