@@ -62,7 +62,7 @@ def runs_to_target(W, q, mu, r0, target, solver, budgets, max_seconds, log=print
     ``target``, the budgets are spent, or the next run would likely pass ``max_seconds`` in all
     (estimated from the last run's seconds per iteration). Yields one dict per run."""
     spent = 0.0
-    for budget in budgets:
+    for k, budget in enumerate(budgets):
         s = fclib.solve_siconos(W, q, mu, tol=1e-300, max_iter=budget, r0=r0, solver=solver)
         res = fclib.residual(W, q, mu, s['r'])
         spent += s['seconds']
@@ -74,7 +74,7 @@ def runs_to_target(W, q, mu, r0, target, solver, budgets, max_seconds, log=print
         if row['reached'] or not np.isfinite(res):
             return
         per_iteration = s['seconds'] / max(s['iterations'], 1)
-        nxt = budgets[budgets.index(budget) + 1] if budget != budgets[-1] else None
+        nxt = budgets[k + 1] if k + 1 < len(budgets) else None
         if nxt is not None and spent + per_iteration * nxt > max_seconds:
             log('  %-7s stopped: the next budget (%d) would pass --max-seconds' % (solver, nxt))
             return

@@ -207,7 +207,7 @@ def watch(src, dest, every, snap_every=None, log=print, sleep=time.sleep):
         except (OSError, ValueError, RuntimeError) as e:      # CheckpointError is a RuntimeError
             outcome = 'not carried (%s: %s)' % (type(e).__name__, e)
         log('%s carry of %s: %s' % (time.strftime('%H:%M:%S'), src, outcome))
-        if is_done(src) and is_done(dest) and up_to_date(src, dest, snap_every):
+        if is_done(src) and up_to_date(src, dest, snap_every):      # up_to_date: the copy is done too
             return rounds
         sleep(60 * every)
 
@@ -255,8 +255,7 @@ def stop_and_carry(src, dest, snap_every=None, timeout=600.0, log=print, proc='/
             pass
     end = time.monotonic() + timeout
     while True:
-        alive = [pid for pid in pids if os.path.exists(os.path.join(proc, str(pid)))
-                 and not _zombie(os.path.join(proc, str(pid)))]
+        alive = [pid for pid in pids if not _exited(os.path.join(proc, str(pid)))]
         if not alive:
             break
         if time.monotonic() > end:
@@ -266,8 +265,8 @@ def stop_and_carry(src, dest, snap_every=None, timeout=600.0, log=print, proc='/
     return carry(src, dest, snap_every=snap_every, log=log)
 
 
-def _zombie(proc_dir):
-    """True when the process of ``proc_dir`` has exited and waits for its parent to reap it."""
+def _exited(proc_dir):
+    """True when the process of ``proc_dir`` is gone, or has exited and waits to be reaped (a zombie)."""
     try:
         with open(os.path.join(proc_dir, 'stat')) as f:
             return f.read().rsplit(')', 1)[1].split()[0] == 'Z'
