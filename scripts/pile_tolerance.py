@@ -4,7 +4,7 @@
                                                  [--snapshot TIGHT.npz]
 
 Loads the run's newest checkpoint (``PileRun.load``: YADE's archive, or a carried run's
-``state.npz``), re-solves one step with the run's own tolerance (or ``--tolerance``) and with a much
+``state.npz``; ``RUN_DIR/at_feed_end`` is the run's checkpoint at the end of its feed, kept by the runner), re-solves one step with the run's own tolerance (or ``--tolerance``) and with a much
 tighter one (from the same saved state, same warm start), and compares the ground-pressure
 profile (per ring) and band force densities (vertical and horizontal cuts through the pile).
 Writes RUN_DIR/tolerance_effect.json and prints the relative changes: where they exceed the

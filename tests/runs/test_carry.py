@@ -12,7 +12,7 @@ import tempfile
 import unittest
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
-from yadecd.runs.carry import (carry, carry_if_changed, chosen_snapshots, is_done, processes_running, snapshot_time,
+from yadecd.runs.carry import (FEED_END_DIR, carry, carry_if_changed, chosen_snapshots, is_done, processes_running, snapshot_time,
                                stop_and_carry, up_to_date, watch)
 from yadecd.runs.checkpoint import CheckpointError, CheckpointStore
 
@@ -108,6 +108,29 @@ class TestCarry(RunDir):
             json.dump({'n_grains': 10}, f)
         record = carry(self.src, self.dest, snap_every=3, **QUIET)
         self.assertEqual(record['snapshots'], [snap(3)])
+
+    def test_feed_end_copy_taken_along(self):
+        """The run's copy of itself at the end of the feed goes with it, whole; a carry without
+        snapshots takes none; a copy appearing in the source makes the carried one out of date."""
+        record = carry(self.src, self.dest, snap_every=2, **QUIET)
+        self.assertFalse(record['feed_end_copy'])
+        kept = os.path.join(self.src, FEED_END_DIR)
+        inner = carry(self.src, kept, snapshots=False, **QUIET)
+        self.assertEqual(inner['snapshots'], [])
+        self.assertFalse(inner['feed_end_copy'])
+        self.assertEqual(sorted(os.listdir(kept)), ['CARRIED.json', 'ckpt', 'progress.csv', 'run.json', 'segments.csv'])
+        self.assertFalse(up_to_date(self.src, self.dest, snap_every=2))
+        record = carry(self.src, self.dest, snap_every=2, **QUIET)
+        self.assertTrue(record['feed_end_copy'])
+        self.assertTrue(up_to_date(self.src, self.dest, snap_every=2))
+        copied = os.path.join(self.dest, FEED_END_DIR)
+        self.assertEqual(CheckpointStore(copied).latest()[0], 2)
+        with open(os.path.join(CheckpointStore(copied).latest()[1], 'state.npz'), 'rb') as f:
+            self.assertEqual(f.read(), b'state 2')
+        # carried on again from the copy (back to a working directory), it is still there
+        back = os.path.join(self.tmp, 'work')
+        self.assertTrue(carry(self.dest, back, **QUIET)['feed_end_copy'])
+        self.assertEqual(CheckpointStore(os.path.join(back, FEED_END_DIR)).latest()[0], 2)
 
     def test_damaged_newest_unit(self):
         """The source's newest unit is truncated: the one before it is carried, and the log says why."""

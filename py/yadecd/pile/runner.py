@@ -14,6 +14,7 @@ from yade import O
 from ..io import write_json_atomic
 from ..runs import cost as runcost, runstate
 from ..runs.runstate import RunStateError  # noqa: F401 (reachable as yadecd.pile.RunStateError)
+from ..runs.carry import FEED_END_DIR, carry
 from ..runs.checkpoint import CheckpointStore, CheckpointError, has_checkpoint
 from .build import Clock, Feeder, add_clump, add_grain, build_scene, solver_stats
 from .protocol import (BRANCH_MAY_CHANGE, RESUME_MAY_CHANGE, UNSAVED_OPTIONS, check_params, creation_period, defaults,
@@ -277,8 +278,10 @@ class PileRun:
         os.replace(path + '.tmp', path)
 
     # ------------------------------------------------------------------ checkpoints
-    def checkpoint(self):
-        """Write one checkpoint unit (between steps, never from inside O.run)."""
+    def checkpoint(self, now=None):
+        """Write one checkpoint unit (between steps, never from inside O.run); it records the
+        run's wall time up to ``now`` (default: the call), the same instant a segment's end
+        measures its own wall time to, so that the segments' times add up to the run's."""
         t, it = self.clock.time(), self.clock.iter()
         bid = sorted(self.births)
         extra = dict(birth_id=np.array(bid, dtype=np.int64), birth_time=np.array([self.births[b] for b in bid]),
@@ -287,9 +290,22 @@ class PileRun:
                     plugin_digest=runstate.plugin_digest(), yade_version=runstate.yade_version(),
                     rng=self.rng.bit_generator.state, created=self.feeder.count, snaps=sorted(self.done_snaps),
                     n_unconverged=int(getattr(O.engines[-1], 'nUnconverged', 0)),
-                    wall_s=self.wall_before + (time.time() - self.segment_start))
+                    wall_s=self.wall_before + ((time.time() if now is None else now) - self.segment_start))
         self.store.write({'state.npz': lambda path: runstate.capture(path, t, it, extra),
                           'scene.yade.gz': lambda path: O.save(path)}, meta)
+
+    def keep_feed_end(self):
+        """Checkpoint now (the end of the feed) and keep that checkpoint as the run's carried copy
+        of itself in ``<run>/at_feed_end`` (:data:`yadecd.runs.carry.FEED_END_DIR`), which
+        pruning never touches: ``pile_tolerance.py <run>/at_feed_end`` re-solves it tightly."""
+        self.checkpoint()
+        carry(self.run_dir, os.path.join(self.run_dir, FEED_END_DIR), snapshots=False, log=self.log)
+
+    def _feed_end_pending(self, t_feed_end):
+        """Whether this segment is to keep the end of the feed (:meth:`keep_feed_end`): the pile
+        relaxes after the feed, the feed has not ended yet and no copy is kept already."""
+        return (self.p['relax'] > 0 and self.clock.time() < t_feed_end - 0.5 * self.p['dt']
+                and not os.path.isdir(os.path.join(self.run_dir, FEED_END_DIR)))
 
     # ------------------------------------------------------------------ stepping
     def advance(self, t_stop=None):
@@ -309,6 +325,7 @@ class PileRun:
         t_end = t_feed_end + p['relax']
         t_stop = min(t_end, t_stop or p['stop_time'] or t_end)
         snaps = [t for t in snapshot_times(p, t_end) if '%.3f' % t not in self.done_snaps]
+        keep_end = self._feed_end_pending(t_feed_end)
         wall0, sim0 = time.time(), clock.time()
         self.segment_start = wall0
         runcost.append_segment(self.run_dir, sim0, self.wall_before, O.numThreads)
@@ -323,7 +340,8 @@ class PileRun:
             steps = period - clock.iter() % period
             if snaps:
                 steps = min(steps, max(1, int(round((snaps[0] - clock.time()) / p['dt']))))
-            steps = min(steps, max(1, int(round((t_stop - clock.time()) / p['dt']))))
+            for t_next in ([t_stop, t_feed_end] if keep_end else [t_stop]):
+                steps = min(steps, max(1, int(round((t_next - clock.time()) / p['dt']))))
             O.run(steps, True)
             t = clock.time()
             if snaps and t >= snaps[0] - 0.5 * p['dt']:
@@ -333,6 +351,9 @@ class PileRun:
                     from yade import export
                     export.VTKExporter(os.path.join(self.run_dir, 'vtk_%08.3f' % t)).exportSpheres(what=dict(vel='b.state.vel'))
                 self.done_snaps.add(tag)
+            if keep_end and t >= t_feed_end - 0.5 * p['dt']:
+                self.keep_feed_end()
+                keep_end, last_ck = False, time.time()
             now = time.time()
             if now - last_log > 10 or t >= t_stop - 0.5 * p['dt']:
                 rate = (t - sim0) / max(now - wall0, 1e-9)
@@ -350,9 +371,10 @@ class PileRun:
             if now - last_ck > p['checkpoint_every']:
                 self.checkpoint()
                 last_ck = time.time()
-        self.checkpoint()
+        end = time.time()
+        self.checkpoint(now=end)
         progress.close()
-        p['wall_time_s'] = time.time() - wall0   # this segment's (a resumed run: since the resume)
+        p['wall_time_s'] = end - wall0           # this segment's (a resumed run: since the resume)
         p['wall_time_total_s'] = self.wall_before + p['wall_time_s']   # all segments
         p['finished'] = clock.time() >= t_end - 0.5 * p['dt']
         p['unconverged_steps'] = getattr(O.engines[-1], 'nUnconverged', 0)
@@ -424,7 +446,7 @@ def clear_run(run_dir, keep=()):
                 shutil.rmtree(path)
             else:
                 os.remove(path)
-        elif name == 'ckpt':
+        elif name in ('ckpt', FEED_END_DIR):
             shutil.rmtree(path)
 
 

@@ -38,6 +38,12 @@ from .checkpoint import POINTER, CheckpointError, CheckpointStore, sha256
 RUN_FILES = ('run.json', 'progress.csv', 'segments.csv')
 SNAP_PREFIX, SNAP_SUFFIX = 'snap_', '.npz'
 RECORD = 'CARRIED.json'
+#: A run's carried copy of itself at the end of the feed (run.json, progress, one checkpoint reduced
+#: to state.npz), which the runner keeps when the pile relaxes after the feed: the run's own
+#: checkpoints are pruned to the newest two, and the forces at the end of the feed re-solved
+#: tightly (``pile_tolerance.py RUN/at_feed_end``) need a checkpoint there (a snapshot holds no
+#: impulses). :func:`carry` takes it along.
+FEED_END_DIR = 'at_feed_end'
 
 
 def snapshot_time(name):
@@ -80,8 +86,11 @@ def snapshots_to_carry(src, snap_every=None):
     return chosen_snapshots(os.listdir(src), snap_every, also=() if end is None else (end,))
 
 
-def carry(src, dest, snap_every=None, log=print):
-    """Copy the portable part of the pile run in ``src`` to ``dest`` (replaced whole if it exists).
+def carry(src, dest, snap_every=None, log=print, snapshots=True):
+    """Copy the portable part of the pile run in ``src`` to ``dest`` (replaced whole if it exists):
+    run.json, progress, the newest valid checkpoint reduced to state.npz, the snapshots
+    :func:`snapshots_to_carry` chooses (none when ``snapshots`` is False) and the run's copy of
+    itself at the end of the feed (:data:`FEED_END_DIR`) when it has one.
 
     :returns: the record written to ``dest/CARRIED.json``.
     :raises FileNotFoundError: ``src`` holds no run.json.
@@ -109,7 +118,7 @@ def carry(src, dest, snap_every=None, log=print):
     for name in RUN_FILES:
         if os.path.exists(os.path.join(src, name)):
             shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
-    snaps = snapshots_to_carry(src, snap_every)
+    snaps = snapshots_to_carry(src, snap_every) if snapshots else []
     for name in snaps:
         shutil.copy2(os.path.join(src, name), os.path.join(tmp, name))
 
@@ -127,8 +136,13 @@ def carry(src, dest, snap_every=None, log=print):
     with open(os.path.join(tmp, 'ckpt', POINTER), 'w') as f:
         json.dump({'current': seq, 'previous': None}, f)
 
+    kept = os.path.join(src, FEED_END_DIR)
+    with_feed_end = os.path.isdir(kept) and kept != dest
+    if with_feed_end:
+        shutil.copytree(kept, os.path.join(tmp, FEED_END_DIR))
+
     all_snaps = [n for n in os.listdir(src) if snapshot_time(n) is not None]
-    record = {'source': src, 'carried_unix': time.time(), 'checkpoint': seq,
+    record = {'feed_end_copy': with_feed_end, 'source': src, 'carried_unix': time.time(), 'checkpoint': seq,
               'time': info['meta'].get('time'), 'iter': info['meta'].get('iter'),
               'wall_s': info['meta'].get('wall_s'), 'snapshots': snaps,
               'snapshots_left_out': sorted(set(all_snaps) - set(snaps)), 'checkpoint_files_left_out': dropped}
@@ -146,9 +160,9 @@ def carry(src, dest, snap_every=None, log=print):
     os.replace(tmp, dest)
     shutil.rmtree(old, ignore_errors=True)
     when = '%.3f' % record['time'] if isinstance(record['time'], (int, float)) else '?'
-    log('carried %s -> %s: checkpoint %d at t=%s s, %d snapshots (%d left out)%s'
+    log('carried %s -> %s: checkpoint %d at t=%s s, %d snapshots (%d left out)%s%s'
         % (src, dest, seq, when, len(snaps), len(record['snapshots_left_out']),
-           ', without ' + ', '.join(dropped) if dropped else ''))
+           ', without ' + ', '.join(dropped) if dropped else '', ', with its copy at the end of the feed' if with_feed_end else ''))
     return record
 
 
@@ -168,8 +182,8 @@ def is_done(run_dir):
 
 def up_to_date(src, dest, snap_every=None):
     """True when ``dest`` is a carried copy of ``src`` (its CARRIED.json) that holds the newest
-    valid checkpoint of ``src``, the snapshots :func:`carry` would take now and ``src``'s finished
-    state: carrying again would copy the same things."""
+    valid checkpoint of ``src``, the snapshots :func:`carry` would take now, ``src``'s finished
+    state and its copy at the end of the feed if it has one: carrying again would copy the same things."""
     try:
         with open(os.path.join(dest, RECORD)) as f:
             before = json.load(f)
@@ -177,7 +191,8 @@ def up_to_date(src, dest, snap_every=None):
         return False
     latest = CheckpointStore(src).latest()
     return (latest is not None and before.get('checkpoint') == latest[0] and is_done(dest) == is_done(src)
-            and before.get('snapshots') == snapshots_to_carry(src, snap_every))
+            and before.get('snapshots') == snapshots_to_carry(src, snap_every)
+            and os.path.isdir(os.path.join(dest, FEED_END_DIR)) == os.path.isdir(os.path.join(src, FEED_END_DIR)))
 
 
 def carry_if_changed(src, dest, snap_every=None, log=print):
