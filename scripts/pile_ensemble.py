@@ -91,10 +91,10 @@ def main(argv=None):
         return 0
     if args.cmd == 'carry':
         return carry(p, ens, args)
-    from yadecd.analysis import ensemble as stats
+    from yadecd.analysis.ensemble_report import analyse_ensemble
     out = args.figures or os.path.join(args.out, 'analysis')
-    summary = stats.analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
-                                     records_from=args.records)
+    summary = analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
+                               records_from=args.records)
     print('written: %s' % os.path.join(out, 'ensemble_summary.json'))
     return 0 if summary['n_runs_analysed_all_shapes'] else 1
 

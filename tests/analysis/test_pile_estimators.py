@@ -345,7 +345,7 @@ class TestShapeStatistics(unittest.TestCase):
     present (records missing from a figure are said on it, not drawn empty)."""
 
     def test_shapes_apart(self):
-        from yadecd.analysis import ensemble as pea
+        from yadecd.analysis import shapes as pea
         rec = TestEnsembleStatistics.record
         spheres = [rec(1000, s, 'relaxed', 26.0 + s, 1.0, 1.0) for s in (1, 2)]          # D = 0
         dimers = [dict(rec(1000, s, 'relaxed', 30.0 + s, 1.0, 2.0), grain_shape='dimer', run='dimer_n1000_s%d' % s)
@@ -385,7 +385,7 @@ class TestShapeStatistics(unittest.TestCase):
         stored dimer records): the shapes are analysed, the sphere size table says there is
         nothing to tabulate, no empty size figure is drawn, and the summary counts the piles of
         every shape (pile_ensemble.py analyse then exits 0)."""
-        from yadecd.analysis import ensemble as pea
+        from yadecd.analysis import ensemble as pea, ensemble_report
         rec = TestEnsembleStatistics.record
         with tempfile.TemporaryDirectory() as d:
             root, stored, out = (os.path.join(d, x) for x in ('ens', 'stored', 'out'))
@@ -397,7 +397,7 @@ class TestShapeStatistics(unittest.TestCase):
                          rings_r_over_d=[1.0, 3.0], rings_p_over_hydrostatic=[0.8, 1.0])
                 with open(os.path.join(stored, '%s_relaxed.json' % r['run']), 'w') as f:
                     json.dump(r, f)
-            summary = pea.analyse_ensemble(root, out, n_boot=50, log=lambda m: None, records_from=[stored])
+            summary = ensemble_report.analyse_ensemble(root, out, n_boot=50, log=lambda m: None, records_from=[stored])
             self.assertEqual(summary['n_runs_analysed'], 0)
             self.assertEqual(summary['n_runs_analysed_all_shapes'], 3)
             self.assertEqual(sorted(f for f in os.listdir(out) if f.startswith('ensemble_') and f.endswith('.png')), [])

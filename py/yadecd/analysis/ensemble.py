@@ -7,7 +7,10 @@ snapshot is newer). Per grain count and epoch, every scalar becomes a mean, a sp
 a 95 % Student-t interval; the change on relaxation is measured seed by seed (paired); the
 central dip is pooled over seeds (D = 1 - sum of disc pressures / sum of annulus pressures, a
 jackknife over piles); the reciprocity and fossil-layer statistics are pooled over pairs, cuts
-and seeds. Written: ``ensemble_summary.json``, ``ensemble_table.md`` and three figures.
+and seeds. Here: the per-run records (:func:`run_record`, :func:`collect`, :func:`stored_records`), the
+statistics per size (:func:`aggregate`), their table and figures; the grain shapes are compared in
+:mod:`.shapes`, the size trends fitted in :mod:`.trends`, and :func:`.ensemble_report.analyse_ensemble`
+writes all of it (``ensemble_summary.json``, ``ensemble_table.md``, the figures).
 
 numpy and matplotlib only (no YADE needed).
 """
@@ -54,7 +57,8 @@ SCALARS = {
 PAIRED = ('slope_deg', 'chord_angle_deg', 'H_m', 'base_radius_m', 'packing_fraction', 'dip_D')
 
 
-def _num(x):
+def finite_or_nan(x):
+    """``x`` as a float, NaN when it is None or not finite (a record's missing number)."""
     return float(x) if x is not None and np.isfinite(x) else float('nan')
 
 
@@ -196,11 +200,11 @@ def aggregate(records):
     for (n, epoch), recs in sorted(groups.items()):
         g = {'n_runs': len(recs), 'seeds': [r['seed'] for r in recs]}
         for key in SCALARS:
-            g[key] = pa.mean_interval([_num(r.get(key)) for r in recs])
+            g[key] = pa.mean_interval([finite_or_nan(r.get(key)) for r in recs])
         g['slope_measured_runs'] = int(sum(1 for r in recs if r.get('slope_deg') is not None))
         g['slope_notes'] = sorted({r['slope_note'] for r in recs if r.get('slope_note')})
-        disc = np.array([_num(r['p_disc_Pa']) for r in recs])
-        ring = np.array([_num(r['p_ring_Pa']) for r in recs])
+        disc = np.array([finite_or_nan(r['p_disc_Pa']) for r in recs])
+        ring = np.array([finite_or_nan(r['p_ring_Pa']) for r in recs])
         ok = np.isfinite(disc) & np.isfinite(ring)
         g['dip_pooled'] = pa.jackknife_ratio_dip(disc[ok], ring[ok])
         g['reciprocity_pooled'] = {'true': _pooled([r['recip_rel'] for r in recs]),
@@ -223,7 +227,7 @@ def aggregate(records):
         both = sorted(set(feed) & set(relaxed))
         if not both:
             continue
-        changes[str(n)] = {key: pa.mean_interval([_num(relaxed[s].get(key)) - _num(feed[s].get(key)) for s in both])
+        changes[str(n)] = {key: pa.mean_interval([finite_or_nan(relaxed[s].get(key)) - finite_or_nan(feed[s].get(key)) for s in both])
                            for key in PAIRED}
         changes[str(n)]['seeds'] = both
     return out, changes
@@ -288,7 +292,10 @@ def table_markdown(stats, changes, labels=None):
 # ---------------------------------------------------------------------------------------------
 # figures
 
-def _series(stats, key, epoch, factor=1.0):
+def stat_series(stats, key, epoch, factor=1.0):
+    """(grain counts, means, interval lows, interval highs) of one scalar of :func:`aggregate`'s
+    statistics at ``epoch``, sorted by size, times ``factor`` (a size without a finite mean is left
+    out; a missing interval bound is the mean)."""
     ns, m, lo, hi = [], [], [], []
     for k, g in stats.items():
         n, ep = int(k.split('_')[0]), k.split('_')[1]
@@ -303,7 +310,7 @@ def _series(stats, key, epoch, factor=1.0):
     return tuple(np.array(x)[order] for x in (ns, m, lo, hi))
 
 
-def _size_axis(ax, records):
+def size_axis(ax, records):
     """Log x axis ticked at the ensemble's grain counts."""
     sizes = sorted({r['n_grains'] for r in records})
     ax.set_xscale('log')
@@ -324,7 +331,7 @@ def fig_slope(stats, records, path):
     styles = {('slope_deg', 'feed'): ('tab:blue', 'o', -0.03), ('slope_deg', 'relaxed'): ('tab:orange', 's', 0.03),
               ('chord_angle_deg', 'feed'): ('tab:blue', '^', -0.015), ('chord_angle_deg', 'relaxed'): ('tab:orange', 'v', 0.015)}
     for (key, epoch), (colour, marker, shift) in styles.items():
-        ns, m, lo, hi = _series(stats, key, epoch)
+        ns, m, lo, hi = stat_series(stats, key, epoch)
         if not len(ns):
             continue
         x = ns * (1 + shift)
@@ -339,7 +346,7 @@ def fig_slope(stats, records, path):
         ax.text(0.02, 0.03, 'no straight flank (too small) at %s grains: chord angle only' % ', '.join(map(str, unmeasured)),
                 transform=ax.transAxes, fontsize=7)
     ax.axhline(26, color='k', ls='--', lw=0.8, label='paper (14 000 grains)')
-    _size_axis(ax, records)
+    size_axis(ax, records)
     ax.set_xlabel('grains')
     ax.set_ylabel('angle [deg]')
     ax.set_title('free-surface slope against pile size (dots: single seeds)', fontsize=9)
@@ -386,7 +393,7 @@ def fig_dip(stats, records, path):
             ax.errorbar(x * (1 + 2 * shift), d, yerr=[d - lo, hi - d], fmt='d', color=colour, mfc='none', capsize=3,
                         ls='none', elinewidth=0.8, label='%s: one pile, its own 95%% interval (sectors)' % epoch)
     ax.axhline(0, color='k', lw=0.8)
-    _size_axis(ax, records)
+    size_axis(ax, records)
     ax.set_xlabel('grains')
     ax.set_ylabel('D = 1 - p(r < 2d) / p(2d ≤ r < 4d)')
     ax.set_title('central dip of the floor pressure (dots: single piles; D > 0 is a dip)', fontsize=9)
@@ -404,7 +411,7 @@ def fig_pressure(records, path, epoch='relaxed'):
         recs = [r for r in records if r['n_grains'] == n and r['epoch'] == epoch]
         m = min(len(r['rings_p_over_hydrostatic']) for r in recs)
         x = np.array(recs[0]['rings_r_over_d'][:m])
-        rows = np.array([[_num(v) for v in r['rings_p_over_hydrostatic'][:m]] for r in recs])
+        rows = np.array([[finite_or_nan(v) for v in r['rings_p_over_hydrostatic'][:m]] for r in recs])
         st = [pa.mean_interval(rows[:, j]) for j in range(m)]
         mean = np.array([s_['mean'] for s_ in st])
         lo = np.array([s_['ci95'][0] for s_ in st])
@@ -487,214 +494,3 @@ def stored_records(directories, known):
 def grain_shape(record):
     """The grain shape of a record ('sphere' for records written before shapes were kept)."""
     return record.get('grain_shape', 'sphere')
-
-
-#: Colours and markers of the grain shapes in the shape figures (spheres first, in black).
-SHAPE_STYLE = {'sphere': ('k', 'o'), 'dimer': ('tab:blue', 's'), 'tetra': ('tab:red', '^')}
-
-
-def _shape_order(shapes):
-    return sorted(shapes, key=lambda k: (list(SHAPE_STYLE).index(k) if k in SHAPE_STYLE else len(SHAPE_STYLE), k))
-
-
-def by_shape(records):
-    """{grain shape: its records}, spheres first."""
-    out = {}
-    for r in records:
-        out.setdefault(grain_shape(r), []).append(r)
-    return {k: out[k] for k in _shape_order(out)}
-
-
-def shape_stats(records):
-    """{grain shape: (stats, relaxation changes)} by :func:`aggregate` over each shape's records."""
-    return {shape: aggregate(recs) for shape, recs in by_shape(records).items()}
-
-
-def shared_sizes(records):
-    """Grain counts that records of two shapes or more share (sorted)."""
-    shapes = {}
-    for r in records:
-        shapes.setdefault(r['n_grains'], set()).add(grain_shape(r))
-    return sorted(n for n, k in shapes.items() if len(k) > 1)
-
-
-def shape_table_markdown(per_shape, records):
-    """One ensemble table per grain shape (:func:`table_markdown`), under a heading each, over the
-    sizes that two shapes share (every size when none is shared)."""
-    parts = []
-    groups = by_shape(records)
-    sizes = set(shared_sizes(records))
-    for shape, (stats, changes) in per_shape.items():
-        keep = lambda key: not sizes or int(key.split('_')[0]) in sizes  # noqa: E731
-        labels = {n: '%s %s' % (label, shape) for n, label in size_labels(groups[shape]).items()}
-        parts.append('## %s\n\n%s' % (shape, table_markdown({k: v for k, v in stats.items() if keep(k)},
-                                                              {k: v for k, v in changes.items() if keep(k)}, labels)))
-    return '\n'.join(parts)
-
-
-def _piles(n):
-    """'8 piles', or '1 pile, no interval' (one realisation has no spread over seeds)."""
-    return '1 pile, no interval' if n == 1 else '%d piles' % n
-
-
-def _one_axes():
-    fig = pf.new_figure(7, 4.2)
-    return fig, fig.add_subplot(1, 1, 1)
-
-
-def _shape_series(per_shape):
-    """(shape, its statistics, colour, marker, x factor) for each shape of :func:`shape_stats`'
-    result: the factor spreads the shapes' points apart around each size on the log axis."""
-    k = len(per_shape)
-    for i, (shape, (stats, _)) in enumerate(per_shape.items()):
-        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
-        yield shape, stats, colour, marker, 1 + 0.04 * (i - (k - 1) / 2)
-
-
-def fig_shapes_dip(per_shape, records, path, epoch='relaxed'):
-    """Central dip D against pile size, one series per grain shape: every pile (dots), the pooled
-    D over seeds with its 95 % interval (jackknife over piles) where a size has two piles or more,
-    and where it has one, that pile's own interval over sectors (open diamonds): one realisation
-    has no spread over seeds."""
-    fig, ax = _one_axes()
-    for shape, stats, colour, marker, f in _shape_series(per_shape):
-        mine = [r for r in records if grain_shape(r) == shape and r['epoch'] == epoch and r.get('dip_D') is not None]
-        if mine:
-            ax.plot([r['n_grains'] * f for r in mine], [r['dip_D'] for r in mine], '.', color=colour, ms=3, alpha=0.5)
-        rows = sorted((int(k.split('_')[0]), g) for k, g in stats.items() if k.endswith('_' + epoch))
-        label = '%s (piles per size: %s)' % (shape, ', '.join(str(g['n_runs']) for _, g in rows))
-        xs = [(n, g['dip_pooled']) for n, g in rows if np.isfinite(g['dip_pooled']['se'])]
-        if xs:
-            n, d = np.array([x[0] for x in xs]), [x[1] for x in xs]
-            D = np.array([v['D'] for v in d])
-            lo, hi = np.array([v['ci95'][0] for v in d]), np.array([v['ci95'][1] for v in d])
-            ax.errorbar(n * f, D, yerr=[D - lo, hi - D], fmt=marker + '-', color=colour, capsize=3, lw=0.8, label=label)
-            label = None
-        lone = single_pile_dips(mine, epoch)
-        if lone:
-            x, d, lo, hi = map(np.array, zip(*lone))
-            ax.errorbar(x * f, d, yerr=[d - lo, hi - d], fmt='d', color=colour, mfc='none', capsize=3, ls='none',
-                        elinewidth=0.8, label=label if label else None)
-    ax.plot([], [], 'd', color='0.4', mfc='none', label='one pile: its own 95 % interval (sectors)')
-    ax.axhline(0, color='k', lw=0.8)
-    _size_axis(ax, records)
-    ax.set_xlabel('grains')
-    ax.set_ylabel('D = 1 - p(r < 2d) / p(2d ≤ r < 4d)')
-    ax.set_title('central dip against size and grain shape, %s piles (95 %% intervals over seeds; D > 0 is a dip)' % epoch,
-                 fontsize=8)
-    ax.legend(fontsize=7)
-    return pf.save_figure(fig, path)
-
-
-def fig_shapes_slope(per_shape, records, path, epoch='relaxed'):
-    """Flank slope against pile size, one series per grain shape (mean over seeds, 95 %
-    interval; dots: single piles); the paper's 26°."""
-    fig, ax = _one_axes()
-    for shape, stats, colour, marker, f in _shape_series(per_shape):
-        for r in records:
-            if grain_shape(r) == shape and r['epoch'] == epoch and r.get('slope_deg') is not None:
-                ax.plot(r['n_grains'] * f, r['slope_deg'], '.', color=colour, ms=3, alpha=0.5)
-        ns, m, lo, hi = _series(stats, 'slope_deg', epoch)
-        if len(ns):
-            runs = [stats['%d_%s' % (n, epoch)]['n_runs'] for n in ns]
-            ax.errorbar(ns * f, m, yerr=[m - lo, hi - m], fmt=marker + '-', color=colour, capsize=3, lw=0.8,
-                        label='%s (piles per size: %s; one pile: no interval)' % (shape, ', '.join(str(k) for k in runs)))
-    ax.axhline(26, color='k', ls='--', lw=0.8, label='paper (spheres, 14 000 grains)')
-    _size_axis(ax, records)
-    ax.set_xlabel('grains')
-    ax.set_ylabel('flank slope [deg]')
-    ax.set_title('free-surface slope against size and grain shape, %s piles (95 %% intervals over seeds)' % epoch, fontsize=8)
-    ax.legend(fontsize=7)
-    return pf.save_figure(fig, path)
-
-
-def fig_shapes_pressure(records, n_grains, path, epoch='relaxed'):
-    """Floor pressure over the hydrostatic ρ_bulk·g·H per ring at one pile size, one curve per
-    grain shape (mean over seeds, 95 % intervals)."""
-    fig, ax = _one_axes()
-    groups = by_shape([r for r in records if r['n_grains'] == n_grains and r['epoch'] == epoch])
-    for k, (shape, recs) in enumerate(groups.items()):
-        colour, marker = SHAPE_STYLE.get(shape, ('tab:green', 'D'))
-        m = min(len(r['rings_p_over_hydrostatic']) for r in recs)
-        x = np.array(recs[0]['rings_r_over_d'][:m])
-        rows = np.array([[_num(v) for v in r['rings_p_over_hydrostatic'][:m]] for r in recs])
-        st = [pa.mean_interval(rows[:, j]) for j in range(m)]
-        mean = np.array([s_['mean'] for s_ in st])
-        lo = np.array([s_['ci95'][0] if np.isfinite(s_['ci95'][0]) else s_['mean'] for s_ in st])
-        hi = np.array([s_['ci95'][1] if np.isfinite(s_['ci95'][1]) else s_['mean'] for s_ in st])
-        shift = (k - (len(groups) - 1) / 2) * 0.12
-        ax.errorbar(x + shift, mean, yerr=[mean - lo, hi - mean], fmt=marker + '-', color=colour, ms=3, capsize=2,
-                    label='%s (%s)' % (shape, _piles(len(recs))))
-    if not groups:
-        ax.text(0.5, 0.5, 'no %s pile of %d grains' % (epoch, n_grains), ha='center', va='center', transform=ax.transAxes)
-    ax.axhline(1, color='k', ls=':', lw=0.8, label='hydrostatic ρ_bulk g H')
-    ax.axvspan(0, 2, color='0.9', zorder=0)
-    ax.set_xlabel('r / d (d: mean volume-equivalent diameter; grey: the central disc of D)')
-    ax.set_ylabel('floor pressure / (ρ_bulk g H)')
-    ax.set_title('floor pressure per ring, %d-grain %s piles, by grain shape (95 %% intervals over seeds)' % (n_grains, epoch),
-                 fontsize=8)
-    ax.legend(fontsize=7)
-    return pf.save_figure(fig, path)
-
-
-def analyse_shapes(records, out_dir):
-    """The grain-shape comparison, when the records hold another shape than spheres: per-shape
-    tables (``shape_table.md``), D and the slope against size per shape, and floor-pressure
-    profiles per shape at every size two shapes share. Returns the per-shape statistics ({} when
-    only spheres are there)."""
-    groups = by_shape(records)
-    if set(groups) <= {'sphere'}:
-        return {}
-    per_shape = shape_stats(records)
-    with open(os.path.join(out_dir, 'shape_table.md'), 'w') as f:
-        f.write(shape_table_markdown(per_shape, records))
-    fig_shapes_dip(per_shape, records, os.path.join(out_dir, 'shapes_dip.png'))
-    fig_shapes_slope(per_shape, records, os.path.join(out_dir, 'shapes_slope.png'))
-    for n in shared_sizes(records):
-        fig_shapes_pressure(records, n, os.path.join(out_dir, 'shapes_pressure_n%d.png' % n))
-    return {shape: {'stats': st, 'relaxation_change': ch} for shape, (st, ch) in per_shape.items()}
-
-
-def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
-    """Analyse every finished run of the ensemble in ``root`` (plus the stored per-run records of
-    ``records_from`` directories for runs absent from ``root``); write the statistics, the tables
-    (per size, per shape, the size trends of :mod:`.trends`) and the figures into ``out_dir``.
-    Returns the summary dict."""
-    os.makedirs(out_dir, exist_ok=True)
-    records, failed, unfinished = collect(root, out_dir, log=log)
-    extra = stored_records(records_from, {(r['run'], r['epoch']) for r in records})
-    if extra:
-        log('added %d stored records (%s)' % (len(extra), ', '.join(sorted({r['run'] for r in extra}))))
-    records += extra
-    every_shape = records
-    records = [r for r in records if grain_shape(r) == 'sphere']   # the size trend of the paper's grains
-    stats, changes = aggregate(records)
-    summary = {'root': os.path.abspath(root), 'n_runs_analysed': len({r['run'] for r in records}),
-               'n_runs_analysed_all_shapes': len({r['run'] for r in every_shape}),
-               'failed_runs': failed, 'unfinished_runs': unfinished, 'stats': stats,
-               'relaxation_change': changes,
-               'conventions': {'interval': '95 % Student-t over seeds (mean ± std over seeds)',
-                               'dip_pooled': 'D = 1 - sum_p p_disc / sum_p p_ring over piles p; delete-one-pile jackknife, t interval, '
-                                             'confidence = one-sided t probability that D > 0',
-                               'units': 'SI unless the key says otherwise'}}
-    from .trends import analyse_trends   # (it uses this module's shape helpers): size_trend.md and figures
-    summary.update((k, v) for k, v in (('shapes', analyse_shapes(every_shape, out_dir)),
-                                       ('size_trends', analyse_trends(every_shape, out_dir))) if v)
-    with open(os.path.join(out_dir, 'ensemble_summary.json'), 'w') as f:
-        json.dump(jsonable(summary), f, indent=1, sort_keys=True)
-    table = (table_markdown(stats, changes, size_labels(records)) if records else   # clumps only: no size table, no empty figures
-             'No piles of spheres among the analysed runs: the size table and its figures (ensemble_*.png) are not drawn; '
-             'the shapes are in shape_table.md.\n')
-    if failed:
-        table += '\nFailed runs (not in the statistics): ' + '; '.join('%s: %s' % (k, ' '.join(v)) for k, v in failed.items()) + '\n'
-    if unfinished:
-        table += '\nUnfinished runs (not in the statistics): ' + ', '.join(unfinished) + '\n'
-    with open(os.path.join(out_dir, 'ensemble_table.md'), 'w') as f:
-        f.write(table)
-    if records:
-        fig_slope(stats, records, os.path.join(out_dir, 'ensemble_slope.png'))
-        fig_dip(stats, records, os.path.join(out_dir, 'ensemble_dip.png'))
-        fig_cuts(records, os.path.join(out_dir, 'ensemble_cuts.png'))
-        fig_pressure(records, os.path.join(out_dir, 'ensemble_pressure.png'))
-    log(table)
-    return summary

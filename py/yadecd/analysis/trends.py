@@ -15,7 +15,8 @@ import numpy as np
 
 from ..pile.protocol import DEFAULTS
 from . import figures as pf
-from .ensemble import by_shape, feed_radius_of, shape_stats, SHAPE_STYLE
+from .ensemble import feed_radius_of
+from .shapes import by_shape, shape_stats, SHAPE_STYLE
 from .stats import size_trend
 
 #: observables whose size trend is reported: record key -> (name, unit, format of a value)
