@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Finish a long pile run: its end of feed and relaxed pile re-solved tightly, their ensemble
-records and their figures (yadecd.runs.finish).
+records and their figures (yadecd.analysis.finish).
 
     python3 scripts/pile_finish.py RUN_DIR --out DIR [--epochs feed,relaxed] [--records DEST]
                                    [--tight 1e-6] [--max-iter 600000] [--threads 1]
@@ -21,7 +21,7 @@ import shutil
 import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
-from yadecd.runs.finish import EPOCHS, finish  # noqa: E402
+from yadecd.analysis.finish import EPOCHS, finish  # noqa: E402
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..'))
 

@@ -21,8 +21,8 @@ PACKAGE = os.path.join(PY, 'yadecd')
 #: modules that must import without YADE (dotted, below yadecd)
 WITHOUT_YADE = ['analysis', 'analysis.snapshots', 'analysis.surface', 'analysis.stats', 'analysis.forces',
                 'analysis.ground', 'analysis.fabric', 'analysis.figures', 'analysis.report', 'analysis.ensemble',
-                'analysis.protocols', 'analysis.rheology', 'analysis.trends', 'analysis.growth', 'analysis.shapes', 'analysis.ensemble_report', 'pile.protocol', 'io', 'runs', 'runs.checkpoint', 'runs.carry', 'runs.cost',
-                'runs.ensemble', 'runs.finish', 'testing', 'testing.synthetic', 'testing.faults', 'testing.variant', 'export',
+                'analysis.protocols', 'analysis.rheology', 'analysis.trends', 'analysis.growth', 'analysis.shapes', 'analysis.ensemble_report', 'analysis.finish', 'pile.protocol', 'io', 'runs', 'runs.checkpoint', 'runs.carry', 'runs.cost',
+                'runs.ensemble', 'testing', 'testing.synthetic', 'testing.faults', 'testing.variant', 'export',
                 'compare', 'compare.examples']
 
 PROBE = r'''

@@ -11,9 +11,9 @@ output is already there, so that an interrupted finish goes on where it stopped:
    pile from the run's own newest checkpoint (the run must be done); it writes
    ``<out>/<epoch>/snap_<t>.npz`` (t: the checkpoint's time plus one step) and
    ``<out>/<epoch>/tolerance_effect.json`` (the run's tolerance against the tight one);
-2. the epoch's record for the ensemble statistics (:func:`yadecd.analysis.ensemble.run_record`,
+2. the epoch's record for the ensemble statistics (:func:`.ensemble.run_record`,
    named ``<run name>_<epoch>.json`` as the ensembles' records are) in ``<out>/records``;
-3. the epoch's figures and ``summary.json`` (:func:`yadecd.analysis.report.analyse`) in
+3. the epoch's figures and ``summary.json`` (:func:`.report.analyse`) in
    ``<out>/<epoch>/figures``.
 """
 
@@ -22,8 +22,10 @@ import os
 import subprocess
 import time
 
-from .carry import FEED_END_DIR, is_done
-from .ensemble import run_name
+from ..runs.carry import FEED_END_DIR, is_done
+from ..runs.ensemble import run_name
+from . import ensemble as ens_analysis, report
+from .snapshots import load_snapshot
 
 EPOCHS = ('feed', 'relaxed')
 
@@ -78,8 +80,7 @@ def resolve(repo, source, epoch_dir, tight=1e-6, max_iter=600000, threads=1, log
     tmp = os.path.join(epoch_dir, 'tight.npz')
     if rc != 0 or not os.path.exists(tmp):
         raise RuntimeError('the tight re-solve of %s failed (exit %d): see %s' % (source, rc, log_path))
-    from ..analysis import snapshots
-    t = float(snapshots.load_snapshot(tmp)['time'])
+    t = float(load_snapshot(tmp)['time'])
     path = os.path.join(epoch_dir, 'snap_%08.3f.npz' % t)
     os.replace(tmp, path)
     log('%s: re-solved in %.0f s -> %s' % (epoch_dir, time.time() - t0, os.path.basename(path)))
@@ -89,7 +90,6 @@ def resolve(repo, source, epoch_dir, tight=1e-6, max_iter=600000, threads=1, log
 def epoch_record(snap_path, params, epoch):
     """The ensemble record of one tight snapshot (:func:`yadecd.analysis.ensemble.run_record`)
     with the run's name, the epoch and the analysis' cache version."""
-    from ..analysis import ensemble as ens_analysis
     rec = ens_analysis.run_record(snap_path, params)
     rec.update(run=run_name(int(params['n_grains']), int(params['seed']), params.get('grain_shape', 'sphere')),
                epoch=epoch, cache_version=ens_analysis.CACHE_VERSION)
@@ -128,7 +128,6 @@ def finish(run_dir, out_dir, repo, epochs=EPOCHS, tight=1e-6, max_iter=600000, t
         log('%s: record %s (slope %.1f deg, D %+.2f)' % (epoch, path, rec['slope_deg'] or float('nan'),
                                                         rec['dip_D'] if rec['dip_D'] is not None else float('nan')))
         if figures:
-            from ..analysis import report
             report.analyse(snap, os.path.join(epoch_dir, 'figures'), fossil=fossil)
             log('%s: figures in %s' % (epoch, os.path.join(epoch_dir, 'figures')))
         out[epoch] = rec

@@ -1,4 +1,4 @@
-"""Finishing a long pile run (yadecd.runs.finish, scripts/pile_finish.py) on a real 30-grain run:
+"""Finishing a long pile run (yadecd.analysis.finish, scripts/pile_finish.py) on a real 30-grain run:
 the end of the feed and the relaxed pile re-solved tightly from their checkpoints, one step later
 than each; their records named as the ensembles'; an interrupted finish going on without redoing
 a re-solve; a run that cannot give an epoch yet refused with the reason."""
@@ -13,7 +13,7 @@ import unittest
 from repo_package import REPO, SCRIPTS
 import yadecd.pile as pile
 from yadecd.runs.carry import FEED_END_DIR
-from yadecd.runs.finish import finish
+from yadecd.analysis.finish import finish
 
 TINY = dict(n_grains=30, relax=0.05, snap_every=1e9, seed=5)   # the feed ends at 0.15 s, the run at 0.2 s
 QUIET = dict(log=lambda s: None)
