@@ -21,6 +21,7 @@ import shutil
 import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 
+from yadecd.analysis.ensemble import record_file  # noqa: E402
 from yadecd.analysis.finish import EPOCHS, finish  # noqa: E402
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..'))
@@ -49,7 +50,7 @@ def main(argv=None):
     if a.records:
         os.makedirs(a.records, exist_ok=True)
         for epoch, rec in records.items():
-            name = '%s_%s.json' % (rec['run'], epoch)
+            name = record_file(rec['run'], epoch)
             shutil.copy2(os.path.join(a.out, 'records', name), os.path.join(a.records, name))
             print('record copied to', os.path.join(a.records, name))
     return 0

@@ -83,7 +83,7 @@ def main(argv=None):
     same = []
     for x in records.get('paper', []):
         for d in refs:
-            path = os.path.join(d, '%s_%s.json' % (x['run'], x['epoch']))
+            path = os.path.join(d, pea.record_file(x['run'], x['epoch']))
             if os.path.exists(path):
                 with open(path) as f:
                     y = json.load(f)

@@ -96,6 +96,20 @@ def run_record(snap_path, params):
     return jsonable(rec)
 
 
+def record_file(run, epoch):
+    """File name of a run's record at one epoch, ``<run>_<epoch>.json``: the name the ensemble's
+    cache, the stored records (:func:`stored_records`) and finished runs use."""
+    return '%s_%s.json' % (run, epoch)
+
+
+def labelled_record(snap_path, params, run, epoch):
+    """:func:`run_record` of one snapshot with the run's name, the epoch and :data:`CACHE_VERSION`:
+    the record as it is stored."""
+    rec = run_record(snap_path, params)
+    rec.update(run=run, epoch=epoch, cache_version=CACHE_VERSION)
+    return rec
+
+
 def _epochs_of(run_dir, params):
     """(label, path) of the feed-end and relaxed snapshots of a run (those that exist)."""
     snaps = pa.list_snapshots(run_dir)
@@ -133,7 +147,7 @@ def collect(root, out_dir, log=print):
             continue
         params = pa.run_parameters(run_dir)
         for label, path in _epochs_of(run_dir, params):
-            cpath = os.path.join(cache, '%s_%s.json' % (name, label))
+            cpath = os.path.join(cache, record_file(name, label))
             if os.path.exists(cpath) and os.path.getmtime(cpath) >= os.path.getmtime(path):
                 with open(cpath) as f:
                     rec = json.load(f)
@@ -141,8 +155,7 @@ def collect(root, out_dir, log=print):
                     records.append(rec)
                     continue
             t0 = time.time()
-            rec = run_record(path, params)
-            rec.update(run=name, epoch=label, cache_version=CACHE_VERSION)
+            rec = labelled_record(path, params, name, label)
             with open(cpath, 'w') as f:
                 json.dump(rec, f)
             records.append(rec)

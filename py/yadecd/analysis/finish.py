@@ -11,8 +11,8 @@ output is already there, so that an interrupted finish goes on where it stopped:
    pile from the run's own newest checkpoint (the run must be done); it writes
    ``<out>/<epoch>/snap_<t>.npz`` (t: the checkpoint's time plus one step) and
    ``<out>/<epoch>/tolerance_effect.json`` (the run's tolerance against the tight one);
-2. the epoch's record for the ensemble statistics (:func:`.ensemble.run_record`,
-   named ``<run name>_<epoch>.json`` as the ensembles' records are) in ``<out>/records``;
+2. the epoch's record for the ensemble statistics (:func:`.ensemble.labelled_record`,
+   named as the ensembles' records are, :func:`.ensemble.record_file`) in ``<out>/records``;
 3. the epoch's figures and ``summary.json`` (:func:`.report.analyse`) in
    ``<out>/<epoch>/figures``.
 """
@@ -87,15 +87,6 @@ def resolve(repo, source, epoch_dir, tight=1e-6, max_iter=600000, threads=1, log
     return path
 
 
-def epoch_record(snap_path, params, epoch):
-    """The ensemble record of one tight snapshot (:func:`yadecd.analysis.ensemble.run_record`)
-    with the run's name, the epoch and the analysis' cache version."""
-    rec = ens_analysis.run_record(snap_path, params)
-    rec.update(run=run_name(int(params['n_grains']), int(params['seed']), params.get('grain_shape', 'sphere')),
-               epoch=epoch, cache_version=ens_analysis.CACHE_VERSION)
-    return rec
-
-
 def finish(run_dir, out_dir, repo, epochs=EPOCHS, tight=1e-6, max_iter=600000, threads=1, fossil=None,
            figures=True, log=print):
     """Every step of the module's docstring for the pile run in ``run_dir``, outputs in ``out_dir``.
@@ -115,14 +106,15 @@ def finish(run_dir, out_dir, repo, epochs=EPOCHS, tight=1e-6, max_iter=600000, t
         raise ValueError('; '.join(wanted_missing))
     with open(os.path.join(run_dir, 'run.json')) as f:
         params = json.load(f)
+    name = run_name(int(params['n_grains']), int(params['seed']), params.get('grain_shape', 'sphere'))
     records_dir = os.path.join(out_dir, 'records')
     os.makedirs(records_dir, exist_ok=True)
     out = {}
     for epoch in epochs:
         epoch_dir = os.path.join(out_dir, epoch)
         snap = resolve(repo, have[epoch], epoch_dir, tight, max_iter, threads, log)
-        rec = epoch_record(snap, params, epoch)
-        path = os.path.join(records_dir, '%s_%s.json' % (rec['run'], epoch))
+        rec = ens_analysis.labelled_record(snap, params, name, epoch)
+        path = os.path.join(records_dir, ens_analysis.record_file(name, epoch))
         with open(path, 'w') as f:
             json.dump(rec, f)
         log('%s: record %s (slope %.1f deg, D %+.2f)' % (epoch, path, rec['slope_deg'] or float('nan'),
