@@ -54,6 +54,9 @@ def main(argv=None):
     a.add_argument('--n-boot', type=int, default=2000, help='bootstrap resamples')
     a.add_argument('--records', action='append', default=[],
                    help='directory of stored per-run records (e.g. docs/data/ensemble_runs) for runs not in OUT')
+    a.add_argument('--docs', default=None, metavar='DOCS',
+                   help="then copy the tables and figures to their places in a docs tree (this checkout's: docs; "
+                        'yadecd.analysis.publish)')
     c = sub.add_parser('carry', help="copy every run's portable part to DEST/<run> (pile_carry.py), beside running piles")
     c.add_argument('out')
     c.add_argument('dest')
@@ -92,10 +95,18 @@ def main(argv=None):
     if args.cmd == 'carry':
         return carry(p, ens, args)
     from yadecd.analysis.ensemble_report import analyse_ensemble
+    from yadecd.analysis.publish import check_docs_root, publish
     out = args.figures or os.path.join(args.out, 'analysis')
+    if args.docs:
+        try:
+            check_docs_root(args.docs)
+        except ValueError as e:
+            p.error(str(e))
     summary = analyse_ensemble(args.out, out, n_boot=args.n_boot, log=lambda m: print(m, flush=True),
                                records_from=args.records)
     print('written: %s' % os.path.join(out, 'ensemble_summary.json'))
+    if args.docs:
+        publish(out, args.docs, log=lambda m: print(m, flush=True))
     return 0 if summary['n_runs_analysed_all_shapes'] else 1
 
 

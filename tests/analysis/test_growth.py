@@ -100,6 +100,15 @@ class TestGrowth(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(sorted(os.listdir(out)), ['growth.md', 'growth_dip.png', 'records'])
         self.assertEqual(len(os.listdir(os.path.join(out, 'records'))), 2)
+        docs = os.path.join(self.tmp, 'docs')
+        for d in ('data', 'figures'):
+            os.makedirs(os.path.join(docs, d))
+        r = subprocess.run([sys.executable, script, self.run, '--out', out, '--docs', docs],
+                           capture_output=True, text=True, timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(out, 'growth.md')) as a, open(os.path.join(docs, 'data', 'growth.md')) as b:
+            self.assertEqual(a.read(), b.read())
+        self.assertTrue(os.path.isfile(os.path.join(docs, 'figures', 'ensemble', 'growth_dip.png')))
         r = subprocess.run([sys.executable, script, self.tmp, '--out', out], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 2)
         self.assertIn('no run.json', r.stderr)
