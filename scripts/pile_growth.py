@@ -5,7 +5,8 @@ measure a pile, against the grains it holds, beside the ensembles' piles at the 
 
     /usr/bin/python3 scripts/pile_growth.py RUN [RUN ...] --out DIR [--records docs/data/ensemble_runs] [--docs docs]
 
-Writes DIR/growth.md (one row per snapshot, then the ensembles' reference) and DIR/growth_dip.png;
+Writes DIR/growth.md (one row per snapshot, then the mean over runs of distinct seeds at the times
+they share, then the ensembles' reference) and DIR/growth_dip.png;
 each snapshot's record is kept in DIR/records/ and read back on the next call while the snapshot
 is unchanged. With --docs, growth.md and growth_dip.png are then copied to their places in that
 docs tree (yadecd.analysis.publish). numpy only (no YADE needed): carried runs in runs/ are read as they are.
@@ -44,10 +45,11 @@ def main(argv=None):
                                                                           log=lambda m: print(m, flush=True))
               for r in args.runs}
     reference = growth.fed_reference(stored_records(args.records, set())) if args.records else {}
-    table = growth.growth_table_markdown(curves, reference)
+    pooled = growth.over_runs(curves)
+    table = growth.growth_table_markdown(curves, reference, pooled)
     with open(os.path.join(args.out, 'growth.md'), 'w') as f:
         f.write(table)
-    growth.fig_growth(curves, reference, os.path.join(args.out, 'growth_dip.png'))
+    growth.fig_growth(curves, reference, os.path.join(args.out, 'growth_dip.png'), pooled)
     print(table)
     print('written: %s, %s' % (os.path.join(args.out, 'growth.md'), os.path.join(args.out, 'growth_dip.png')))
     if args.docs:

@@ -93,6 +93,33 @@ class TestGrowth(unittest.TestCase):
         path = growth.fig_growth(curves, ref, os.path.join(self.tmp, 'growth.png'))
         self.assertGreater(os.path.getsize(path), 10000)
 
+    def test_over_runs(self):
+        """Three runs of seeds 1-3 with known D at t = 10 and 20 s: each time's row is the mean and
+        t interval of the three values; a branch of seed 1 (another run with the same seed) is left
+        out whatever its values; a time held by one run only (30 s) gets no row; a missing D is
+        skipped, and a time left with one run then gets no row either."""
+        def rec(seed, t, D):
+            return {'seed': seed, 'time_s': t + 1e-12 * seed, 'dip_D': D, 'grains_now': int(200 * t)}
+        curves = {'s1': [rec(1, 10.0, 0.1), rec(1, 20.0, 0.4), rec(1, 30.0, 0.9), rec(1, 40.0, 0.2)],
+                  's2': [rec(2, 10.0, -0.3), rec(2, 20.0, 0.0), rec(2, 40.0, None)],
+                  's1_branch': [rec(1, 10.0, 5.0), rec(1, 20.0, 5.0), rec(1, 30.0, 5.0)],
+                  's3': [rec(3, 10.0, 0.2), rec(3, 20.0, 0.5)],
+                  'empty': []}
+        pooled = growth.over_runs(curves)
+        self.assertEqual(list(pooled), [10.0, 20.0])
+        self.assertEqual(pooled[10.0]['runs'], ['s1', 's2', 's3'])
+        for t, vals in ((10.0, [0.1, -0.3, 0.2]), (20.0, [0.4, 0.0, 0.5])):
+            want = mean_interval(vals)
+            self.assertEqual(pooled[t]['n'], 3)
+            self.assertAlmostEqual(pooled[t]['mean'], sum(vals) / 3, places=14)
+            self.assertAlmostEqual(pooled[t]['ci95'][1], want['ci95'][1], places=14)
+            self.assertEqual(pooled[t]['grains'], 200 * t)
+        # D = 0.4, 0.0, 0.5: mean 0.3, variance 0.07, t(2) = 4.303 (stats' table, 3 decimals)
+        self.assertAlmostEqual(pooled[20.0]['ci95'][1] - 0.3, 4.303 * math.sqrt(0.07 / 3), places=12)
+        table = growth.growth_table_markdown(curves, {}, pooled)
+        self.assertIn('| 20.0 s | 4000 | 3 | +0.30 ± 0.26 [-0.36, +0.96] |', table)
+        self.assertEqual(growth.over_runs(curves, min_runs=4), {})
+
     def test_command_line(self):
         script = os.path.join(SCRIPTS, 'pile_growth.py')
         out = os.path.join(self.tmp, 'out')

@@ -72,14 +72,46 @@ def fed_reference(records, shape='sphere'):
     return {n: mean_interval(v) for n, v in sorted(by_n.items()) if len(v) >= 2}
 
 
+def over_runs(curves, min_runs=2):
+    """The fed state's D over realisations at each snapshot time the runs share: {time [s]:
+    dict(grains, runs, **mean_interval(D))}, in time order, at the times where at least
+    ``min_runs`` runs of distinct seeds have a snapshot (runs fed at the same rate hold the same
+    grains then).
+
+    A run that shares its seed with one before it in ``curves`` (a branch of the same realisation,
+    such as a run resumed at another tolerance) is left out: two branches of one seed are not two
+    realisations. Within one run, successive times are one realisation's history, so the rows are
+    correlated across times; each row's interval is over the runs at that time only."""
+    seen, kept = set(), []
+    for name, recs in curves.items():
+        seeds = {r.get('seed') for r in recs}
+        if not recs or seeds & seen:
+            continue
+        seen |= seeds
+        kept.append((name, recs))
+    by_t = {}
+    for name, recs in kept:
+        for r in recs:
+            if r.get('dip_D') is not None and np.isfinite(r['dip_D']):
+                by_t.setdefault(round(float(r['time_s']), 3), []).append((name, r))
+    out = {}
+    for t in sorted(by_t):
+        rows = by_t[t]
+        if len(rows) >= min_runs:
+            out[t] = dict(mean_interval([r['dip_D'] for _, r in rows]),
+                          grains=float(np.mean([r['grains_now'] for _, r in rows])), runs=[n for n, _ in rows])
+    return out
+
+
 def _num(x, fmt):
     """``fmt % x``, or a dash for a value that is missing or not finite."""
     return fmt % x if x is not None and np.isfinite(x) else '–'
 
 
-def growth_table_markdown(curves, reference):
+def growth_table_markdown(curves, reference, pooled=None):
     """A table per run (time, grains, D with its within-pile 95 % interval, the disc's and the
-    ring's pressure over the hydrostatic one, the slope), then the ensembles' reference."""
+    ring's pressure over the hydrostatic one, the slope), then the fed state over the runs at the
+    times they share (``pooled``, from :func:`over_runs`), then the ensembles' reference."""
     lines = ['| run | t [s] | grains | D [95 % over sectors] | p(r < 2d) / hydrostatic | p(2d–4d) / hydrostatic | flank slope |',
              '| --- | --- | --- | --- | --- | --- | --- |']
     for name, recs in curves.items():
@@ -89,6 +121,12 @@ def growth_table_markdown(curves, reference):
                 name, r['time_s'], r['grains_now'], _num(r.get('dip_D'), '%+.2f'), _num(ci[0], '%+.2f'),
                 _num(ci[1], '%+.2f'), _num(r.get('p_disc_over_hydrostatic'), '%.2f'),
                 _num(r.get('p_ring_over_hydrostatic'), '%.2f'), _num(r.get('slope_deg'), '%.1f°')))
+    if pooled:
+        lines += ['', '| long runs, fed state at t | grains | runs (distinct seeds) | mean D ± spread [95 % over runs] |',
+                  '| --- | --- | --- | --- |']
+        for t, st in pooled.items():
+            lines.append('| %.1f s | %.0f | %d | %+.2f ± %.2f [%+.2f, %+.2f] |' % (
+                t, st['grains'], st['n'], st['mean'], st['std'], *st['ci95']))
     if reference:
         lines += ['', '| ensemble, end of feed | piles | mean D ± spread [95 %] |', '| --- | --- | --- |']
         for n, st in reference.items():
@@ -96,10 +134,11 @@ def growth_table_markdown(curves, reference):
     return '\n'.join(lines) + '\n'
 
 
-def fig_growth(curves, reference, path):
+def fig_growth(curves, reference, path, pooled=None):
     """D of each run's fed snapshots against the grains they hold (log axis), with their
-    within-pile 95 % intervals, and the ensembles' single piles at the end of their feed (mean and
-    95 % interval over seeds)."""
+    within-pile 95 % intervals, the mean over the runs at the times they share (``pooled``, 95 %
+    interval over runs), and the ensembles' single piles at the end of their feed (mean and 95 %
+    interval over seeds)."""
     fig = pf.new_figure(7.5, 4.2)
     ax = fig.add_subplot(1, 1, 1)
     colours = ['tab:red', 'tab:blue', 'tab:green', 'tab:purple', 'tab:orange']
@@ -113,6 +152,12 @@ def fig_growth(curves, reference, path):
         c = colours[k % len(colours)]
         ax.errorbar(n, D, yerr=[D - lo, hi - D], fmt='o-', color=c, ms=4, lw=1, elinewidth=0.6, capsize=2,
                     label='%s, fed snapshots (bars: 95 %% over sectors)' % name)
+    if pooled:
+        ns = np.array([st['grains'] for st in pooled.values()]) * 1.02
+        m = np.array([st['mean'] for st in pooled.values()])
+        ci = np.array([st['ci95'] for st in pooled.values()], dtype=float)
+        ax.errorbar(ns, m, yerr=[m - ci[:, 0], ci[:, 1] - m], fmt='D', color='k', ms=5, capsize=3, zorder=5,
+                    label='long runs: mean over runs of distinct seeds (95 % over runs)')
     if reference:
         ns = np.array(list(reference), dtype=float)
         m = np.array([st['mean'] for st in reference.values()])
