@@ -21,15 +21,7 @@ import numpy as np
 from yade import O
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), '..', 'py'))  # this checkout's yadecd (README: which yadecd)
 from yadecd import pile  # noqa: E402
-from yadecd.io import write_csv  # noqa: E402
-
-
-def rss_mb():
-    with open('/proc/self/status') as f:
-        for line in f:
-            if line.startswith('VmRSS:'):
-                return int(line.split()[1]) / 1024.0
-    return float('nan')
+from yadecd.io import rss_mb, write_csv  # noqa: E402
 
 
 ap = argparse.ArgumentParser(prog='checkpoint_memory.py', description=__doc__.split('\n')[0])
@@ -61,6 +53,8 @@ finally:
 
 
 def slope(phase, scale):
+    """Growth of the resident memory over the second half of the samples of ``phase`` (MB per unit
+    of count, times ``scale``), with the first and last values."""
     pts = np.array([(n, m) for p, n, m in rows if p == phase])
     half = pts[len(pts) // 2:]
     return np.polyfit(half[:, 0], half[:, 1], 1)[0] * scale, pts[0, 1], pts[-1, 1]

@@ -34,10 +34,12 @@ G = 9.81
 
 
 def fmt(x):
+    """A number written exactly (repr of a double)."""
     return repr(float(x))
 
 
 def vec(v):
+    """A vector as exact numbers separated by spaces."""
     return ' '.join(fmt(x) for x in v)
 
 

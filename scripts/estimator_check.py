@@ -26,6 +26,8 @@ FEATURES = [('plain cone', {}), ('rounded cap (1 cm)', dict(cap_radius=0.01)), (
 
 
 def slope_rows(seeds):
+    """Table rows of the flank-slope estimators on constructed cones, ``seeds`` cones per case:
+    each feature alone, then all four at several slopes and heights."""
     rows = []
     cases = [(26.0, 0.03, f) for f in FEATURES] + [(s, h, FEATURES[-1]) for s, h in
                                                    ((20.0, 0.025), (30.0, 0.025), (20.0, 0.06), (30.0, 0.055), (26.0, 0.06))]
@@ -44,6 +46,8 @@ def slope_rows(seeds):
 
 
 def dip_rows(n_single=200, n_ens=200):
+    """Table rows of the central-dip estimator on constructed floors: single piles and ensembles
+    of 8 (mean, spread, interval coverage, how often a dip is declared)."""
     rows = []
     r0, r1 = 0.0075, 0.015
     for dip, flat in ((0.0, True), (0.3, False), (0.4, True)):
@@ -68,6 +72,8 @@ def main():
     ap.add_argument('--out', default=None)
     ap.add_argument('--seeds', type=int, default=3)
     a = ap.parse_args()
+    if a.seeds < 2:
+        ap.error('--seeds must be at least 2 (the tables give spreads over seeds; got %d)' % a.seeds)
     lines = ['Flank slope on constructed cones (%d seeds each; grains of the protocol, d = 0.375 cm)' % a.seeds, '',
              '| true slope | H [cm] | features | flank estimator [°] | chord angle [°] | former estimator [°] |',
              '| --- | --- | --- | --- | --- | --- |'] + slope_rows(a.seeds)

@@ -37,8 +37,8 @@ def main(argv=None):
     ap.add_argument('--checkpoint-every', type=float, default=2.0, help='wall seconds between checkpoints')
     ap.add_argument('--seed', type=int, default=1, help='seed of the pile and of the kill moments')
     a = ap.parse_args(argv)
-    if a.kills < 1 or a.grains < 1 or a.checkpoint_every <= 0:
-        ap.error('--kills, --grains and --checkpoint-every must be positive')
+    if a.kills < 1 or a.grains < 1 or a.checkpoint_every <= 0 or a.relax <= 0:
+        ap.error('--kills, --grains, --relax and --checkpoint-every must be positive')
     if os.path.exists(a.out):
         ap.error('%s exists: choose another --out (a fault run never overwrites one)' % a.out)
     os.makedirs(a.out)
@@ -117,6 +117,8 @@ def main(argv=None):
 
 
 def write_table(r, path):
+    """The fault-injection record ``r`` as a markdown table at ``path``: each fault, how often it
+    was tried, and what happened."""
     k = r['kills']
     lines = ['| fault | tried | outcome |', '|---|---|---|',
              '| SIGKILL at a random moment | %d%s | %d resumes; end bit-identical to the uninterrupted run: %s |'

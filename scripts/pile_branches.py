@@ -38,13 +38,18 @@ if not bp.get('branches'):
     ap.error('%s is not a branch (its run.json lists no branches)' % a.branch)
 t_branch = bp['branches'][-1]['time']
 changes = bp['branches'][-1]['changes']
+if not os.path.isfile(a.summary):
+    ap.error('--summary %s does not exist (the ensembles\' ensemble_summary.json)' % a.summary)
 with open(a.summary) as f:
     summary = json.load(f)
 snaps_a = {round(t, 3): p for t, p in pa.list_snapshots(a.run)}
 snaps_b = {round(t, 3): p for t, p in pa.list_snapshots(a.branch)}
 shared = sorted(t for t in set(snaps_a) & set(snaps_b) if t > t_branch + 1e-9)
 if a.times:
-    wanted = [round(float(x), 3) for x in a.times.split(',')]
+    try:
+        wanted = [round(float(x), 3) for x in a.times.split(',')]
+    except ValueError:
+        ap.error('--times must be comma-separated times in seconds (got %r)' % a.times)
     missing = [t for t in wanted if t not in shared]
     if missing:
         ap.error('no snapshot at %s in both runs after the branch point (shared: %s)' % (missing, shared))

@@ -18,6 +18,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), 
 
 
 def figure(rows, segments, path, title):
+    """Wall time per simulated second and all-in ns per contact-sweep along the run, one colour
+    per segment, into ``path``."""
     from yadecd.analysis import figures as pf
     import numpy as np
     fig = pf.new_figure(9, 6.5)

@@ -67,6 +67,9 @@ def main(argv=None):
     args = p.parse_args(argv)
 
     from yadecd.runs import ensemble as ens
+    if args.cmd in ('status', 'analyse', 'carry') and not os.path.isdir(args.out):
+        p.error('%s is not a directory: give an ensemble made by `run`%s' % (
+            args.out, ', or an empty directory with --records' if args.cmd == 'analyse' else ''))
     if args.cmd == 'run':
         try:
             sizes = [int(x) for x in args.sizes.split(',') if x.strip()]

@@ -24,7 +24,14 @@ def parse(argv):
     p.add_argument('--out', default=None, help='output directory (default RUN/figures)')
     p.add_argument('--half-thickness', type=float, default=0.01, help='slice half thickness [m] (1 cm)')
     p.add_argument('--ring-width', type=float, default=None, help='ground-pressure ring width [m]')
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if not os.path.exists(args.run):
+        p.error('%s does not exist (a run directory or a snapshot file)' % args.run)
+    if not args.half_thickness > 0:
+        p.error('--half-thickness must be a positive length [m] (got %r)' % args.half_thickness)
+    if args.ring_width is not None and not args.ring_width > 0:
+        p.error('--ring-width must be a positive length [m] (got %r)' % args.ring_width)
+    return args
 
 
 def main(argv=None):

@@ -40,6 +40,10 @@ def main(argv=None):
                     help='birth-time interval [s] of a fossil layer for the figures (repeatable)')
     ap.add_argument('--no-figures', action='store_true', help='records only')
     a = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    if not 0 < a.tight < 1:
+        ap.error('--tight must lie in (0, 1), a relative residual (got %r)' % a.tight)
+    if a.max_iter < 1 or a.threads < 1:
+        ap.error('--max-iter and --threads must be positive (got %d and %d)' % (a.max_iter, a.threads))
     epochs = [e.strip() for e in a.epochs.split(',') if e.strip()]
     try:
         records = finish(a.run_dir, a.out, REPO, epochs=epochs, tight=a.tight, max_iter=a.max_iter, threads=a.threads,

@@ -75,6 +75,8 @@ def summary(rows):
 
 
 def table_markdown(groups):
+    """The per-shape summary ``groups`` as a markdown table (plane share of the floor load, change
+    of D with the plane, its interval over piles)."""
     lines = ['| shape | grains | piles | plane share of the floor load | D with the plane − D on the paving: mean [95 %] | smallest, largest |',
              '| --- | --- | --- | --- | --- | --- |']
     for g in groups:
@@ -93,6 +95,9 @@ def main(argv=None):
     p.add_argument('--csv', help='write the per-snapshot rows here')
     p.add_argument('--table', help='write the per-shape summary (markdown) here')
     a = p.parse_args(argv)
+    for path in a.paths:
+        if not os.path.exists(path):
+            p.error('%s does not exist (a run directory or a snapshot file)' % path)
     from yadecd.io import write_csv
     rows = []
     for path in a.paths:

@@ -38,6 +38,9 @@ with open(os.path.join(a.run_dir, 'run.json')) as f:
 
 
 def solve(tol):
+    """One step of the run from its newest checkpoint with the forces solved to ``tol``: returns
+    the snapshot of that step and a dict of its tolerance, sweeps, residual, convergence and wall
+    time (with --snapshot, the tight solve's snapshot is also written there, birth times included)."""
     run = pile.PileRun.load(a.run_dir)   # YADE's archive, or rebuilt from state.npz (a carried run)
     cd = O.engines[-1]
     cd.tolerance, cd.maxIter, cd.warnUnconverged = tol, a.max_iter, False

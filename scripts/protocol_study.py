@@ -27,6 +27,7 @@ REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)),
 def main(argv=None):
     from yadecd.runs import ensemble as ens
     from yadecd.analysis import protocols as protocol, ensemble as pea
+    from yadecd.pile.grains import SHAPES
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     sub = p.add_subparsers(dest='cmd', required=True)
     r = sub.add_parser('run')
@@ -36,11 +37,11 @@ def main(argv=None):
     r.add_argument('--settings', default='h1e-3,h5e-4,tol3e-3,h1e-3_tol3e-3')
     r.add_argument('--relax', type=float, default=1.0)
     r.add_argument('--jobs', type=int, default=2)
-    r.add_argument('--grain-shape', default='sphere', help='grains of the piles (yadecd.pile.grains.SHAPES)')
+    r.add_argument('--grain-shape', default='sphere', choices=list(SHAPES), help='grains of the piles (yadecd.pile.grains.SHAPES)')
     a = sub.add_parser('analyse')
     a.add_argument('root')
     a.add_argument('--size', type=int, default=1000)
-    a.add_argument('--grain-shape', default='sphere', help='the piles compared: this shape\'s runs and reference records')
+    a.add_argument('--grain-shape', default='sphere', choices=list(SHAPES), help='the piles compared: this shape\'s runs and reference records')
     a.add_argument('--reference', action='append', default=[],
                    help='directory of stored per-run records of the paper setting (default docs/data/ensemble_runs)')
     a.add_argument('--out', default=os.path.join(REPO, 'docs', 'data', 'protocol_study'))
@@ -67,6 +68,10 @@ def main(argv=None):
             print('\n'.join(ens.status_lines(os.path.join(args.root, name))), flush=True)
         return 0
 
+    if not os.path.isdir(args.root):
+        p.error('%s is not a protocol study (it does not exist)' % args.root)
+    if not any(os.path.isdir(os.path.join(args.root, name)) for name in protocol.SETTINGS):
+        p.error('%s holds no setting of a protocol study (known: %s)' % (args.root, ', '.join(protocol.SETTINGS)))
     refs = args.reference or [os.path.join(REPO, 'docs', 'data', 'ensemble_runs')]
     records = {}
     for name in protocol.SETTINGS:

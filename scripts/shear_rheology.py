@@ -59,6 +59,7 @@ os.makedirs(args.out, exist_ok=True)
 
 
 def log(msg):
+    """Print ``msg`` at once (long runs are followed in their logs)."""
     print(msg, flush=True)
 
 

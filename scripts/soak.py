@@ -22,17 +22,14 @@ import time
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, 'py'))  # this checkout's yadecd (README: which yadecd)
+from yadecd.io import rss_mb  # noqa: E402
 
-
-def rss_mb(pid):
-    with open('/proc/%d/status' % pid) as f:
-        for line in f:
-            if line.startswith('VmRSS:'):
-                return int(line.split()[1]) / 1024.0
-    return float('nan')
 
 
 def last_progress(run_dir):
+    """(simulated time, grains, contacts) of the last progress line of the run; nan and zeros
+    before there is one."""
     try:
         with open(os.path.join(run_dir, 'progress.csv')) as f:
             lines = f.readlines()
@@ -51,6 +48,9 @@ def main(argv=None):
     ap.add_argument('--plot-only', action='store_true', help='redraw soak_rss.png from --out/soak.csv and soak.json')
     a = ap.parse_args(argv)
     if a.plot_only:
+        for name in ('soak.csv', 'soak.json'):
+            if not os.path.isfile(os.path.join(a.out, name)):
+                ap.error('--plot-only needs %s in --out %s (written by a soak run)' % (name, a.out))
         data = np.loadtxt(os.path.join(a.out, 'soak.csv'), delimiter=',', skiprows=1)
         with open(os.path.join(a.out, 'soak.json')) as f:
             plot(data, json.load(f), os.path.join(a.out, 'soak_rss.png'))
@@ -112,6 +112,7 @@ def main(argv=None):
 
 
 def plot(data, s, path):
+    """Resident memory against wall time, with the growth line fitted in ``s``, into ``path``."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

@@ -26,11 +26,14 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(sys.argv[0])))
 
 
 def default_src():
+    """The examples directory of the YADE source the set-up fetched, or None."""
     found = sorted(glob.glob(os.path.expanduser('~/.cache/yade-cd/src/trunk-*/examples')))
     return found[-1] if found else None
 
 
 def run_one(example, method, steps, out_json, timeout):
+    """Run one example by ``method`` in a YADE process of its own (``example_under_cd.py``), within
+    ``timeout`` seconds; returns its record (status, error, end state)."""
     cmd = [os.path.join(REPO, 'scripts', 'yade'), '-j1', '-n', '-x', os.path.join(REPO, 'scripts', 'example_under_cd.py'),
            example, '--method', method, '--steps', str(steps), '--json', out_json]
     try:
@@ -45,10 +48,12 @@ def run_one(example, method, steps, out_json, timeout):
 
 
 def fmt(x, spec='%.3g'):
+    """``spec % x``, or a dash for a missing value."""
     return '–' if x is None or x != x else spec % x
 
 
 def table(rows):
+    """The markdown table of docs/compare.md: one row per example, CD beside MD."""
     lines = ['| example | what it uses | CD | MD | steps (CD / MD) | kinetic energy CD / MD [J] | mean height CD / MD [m] | CD notes and errors |',
              '| --- | --- | --- | --- | --- | --- | --- | --- |']
     for r in rows:
@@ -70,6 +75,10 @@ def main():
     parser.add_argument('--overwrite', action='store_true')
     parser.add_argument('--docs', action='store_true')
     args = parser.parse_args()
+    if args.timeout <= 0:
+        parser.error('--timeout must be a positive number of seconds (got %d)' % args.timeout)
+    if args.only and not any(args.only in rel for rel, _, _ in EXAMPLES):
+        parser.error('--only %r matches no example (%s)' % (args.only, ', '.join(rel for rel, _, _ in EXAMPLES)))
     if not args.src or not os.path.isdir(args.src):
         sys.exit('no YADE examples directory (run scripts/setup.sh, or give --src)')
     os.makedirs(args.out, exist_ok=True)

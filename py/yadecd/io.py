@@ -71,6 +71,16 @@ def jsonable(value):
     return value
 
 
+def rss_mb(pid=None):
+    """Resident memory (VmRSS) of process ``pid`` (default: this one) in MB, from /proc; nan where
+    /proc does not say."""
+    with open('/proc/%s/status' % ('self' if pid is None else int(pid))) as f:
+        for line in f:
+            if line.startswith('VmRSS:'):
+                return int(line.split()[1]) / 1024.0
+    return float('nan')
+
+
 def host_description():
     """(host name, CPU model and clock) of this machine."""
     info = {}

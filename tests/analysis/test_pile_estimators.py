@@ -301,6 +301,16 @@ class TestEnsembleDriver(unittest.TestCase):
             with open(os.path.join(d, 'ensemble.json')) as f:
                 self.assertEqual(json.load(f)['plan']['relax'], 1.0)
 
+    def test_unknown_grain_shape_refused(self):
+        """A grain shape the piles do not know is refused when planning, naming it and the known
+        ones, and nothing is written."""
+        with tempfile.TemporaryDirectory() as d:
+            with self.assertRaisesRegex(ValueError, r"--grain-shape 'bogus' is not a grain shape \(known: sphere, dimer, tetra\)"):
+                ens.Ensemble(d).plan([300], [1], 1.0, ['--grain-shape', 'bogus'])
+            self.assertFalse(os.path.exists(os.path.join(d, 'ensemble.json')))
+            ens.Ensemble(d).plan([300], [1], 1.0, ['--grain-shape', 'dimer'])
+            self.assertEqual(list(ens.Ensemble(d).runs()), ['dimer_n300_s1'])
+
 
 
 class TestEnsembleStatistics(unittest.TestCase):

@@ -2,12 +2,14 @@
 yadecd.analysis.stats.sweeps_to."""
 import csv
 import os
+import subprocess
+import sys
 import tempfile
 import unittest
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
 from yadecd.analysis.stats import sweeps_to
-from yadecd.io import PROVENANCE_FIELDS, jsonable, write_csv, write_json_atomic
+from yadecd.io import PROVENANCE_FIELDS, jsonable, rss_mb, write_csv, write_json_atomic
 
 
 class TestWriteCsv(unittest.TestCase):
@@ -61,6 +63,24 @@ class TestJson(unittest.TestCase):
             with self.assertRaisesRegex(ValueError, 'no rows'):
                 write_csv(os.path.join(d, 'x.csv'), [], log=lambda s: None)
             self.assertFalse(os.path.exists(os.path.join(d, 'x.csv')))
+
+
+class TestRss(unittest.TestCase):
+    def test_this_process_and_another(self):
+        """rss_mb reads VmRSS: this process's by default and by its pid agree within what the
+        allocator moves between two reads; a child holding 200 MB more than an idle one is seen
+        200 MB larger (within 20 MB)."""
+        self.assertAlmostEqual(rss_mb(), rss_mb(os.getpid()), delta=5.0)
+        self.assertGreater(rss_mb(), 1.0)
+        code = 'import sys; b = bytearray(b"\\x01") * %d if sys.argv[1] == "big" else b""; sys.stdout.write("x"); sys.stdout.flush(); sys.stdin.read()'
+        sizes = {}
+        for kind in ('idle', 'big'):
+            p = subprocess.Popen([sys.executable, '-c', code % (200 * 2 ** 20), kind], stdin=subprocess.PIPE,
+                                 stdout=subprocess.PIPE)
+            p.stdout.read(1)                     # the child has allocated and touched its memory
+            sizes[kind] = rss_mb(p.pid)
+            p.communicate(b'')
+        self.assertAlmostEqual(sizes['big'] - sizes['idle'], 200.0, delta=20.0)
 
 
 class TestSweepsTo(unittest.TestCase):

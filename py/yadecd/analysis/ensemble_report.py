@@ -20,6 +20,8 @@ def analyse_ensemble(root, out_dir, n_boot=2000, log=print, records_from=()):
     ``records_from`` directories for runs absent from ``root``); write the statistics, the tables
     (per size, per shape, the size trends of :mod:`.trends`) and the figures into ``out_dir``.
     Returns the summary dict."""
+    if not os.path.isdir(root):
+        raise ValueError('%s is not an ensemble directory (it does not exist)' % root)
     os.makedirs(out_dir, exist_ok=True)
     records, failed, unfinished = collect(root, out_dir, log=log)
     extra = stored_records(records_from, {(r['run'], r['epoch']) for r in records})

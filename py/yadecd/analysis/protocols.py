@@ -231,6 +231,7 @@ def figure(results, ref_records, path, epoch, n_grains, keys=('slope_deg', 'pack
 
 
 def save_json(results, path):
+    """Write ``results`` to ``path`` as JSON (numpy values made plain: :func:`jsonable`), keys sorted."""
     with open(path, 'w') as fh:
         json.dump(jsonable(results), fh, indent=1, sort_keys=True)
 

@@ -33,9 +33,12 @@ class Scene:
         self.info = None
 
     def build(self):
+        """Build the scene in YADE (a :mod:`yadecd.scenes` builder); each subclass defines it."""
         raise NotImplementedError
 
     def begin(self, method):
+        """Start a run by ``method`` ('CD' or 'MD'): clear the samples and overlap tallies, and take
+        the mechanical energy at the start and the reference energy that scales its drift."""
         self.method = method
         self.t_samples, self.wall_samples = [], []
         self.max_overlap = 0.0
@@ -51,6 +54,8 @@ class Scene:
         return ke + m * max(Vector3(self.gravity).norm(), 1e-3) * 2 * r
 
     def track_overlap(self):
+        """The deepest overlap now, over the diameter of the smaller sphere; adds every contact's to
+        the mean and keeps the run's largest."""
         worst = 0.0
         for ov, d in overlaps():
             worst = max(worst, ov / d)
@@ -86,13 +91,18 @@ class Scene:
         return None
 
     def check_failure(self):
+        """A scene's own failure test (a sphere past a wall, a stack crossed): True when it failed.
+        None here: scenes without one rely on :meth:`failed`'s energy and overlap tests."""
         return None
 
     def finish(self):
+        """The run's errors against the exact solution: a dict with the main one under ``'error'``;
+        each subclass defines it."""
         raise NotImplementedError
 
     @property
     def gravity(self):
+        """The gravity vector the scene was built with (for the potential energy)."""
         return self._gravity
 
 

@@ -149,6 +149,8 @@ class ExampleRun:
         self.converted, self.notes, self.taken = False, [], 0
 
     def convert(self):
+        """Replace the script's engines by CD's (once, for a CD run; :func:`convert_engines`), keeping
+        its notes of what was dropped or changed."""
         from yade import O
         if self.method == 'cd' and not self.converted:
             O.engines, notes = convert_engines(O.engines)

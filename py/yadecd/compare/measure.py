@@ -11,6 +11,7 @@ __all__ = ['spheres', 'gap', 'overlaps', 'floor_force', 'mechanical_energy', 'al
 
 
 def spheres():
+    """Every body of the scene whose shape is a sphere."""
     return [b for b in O.bodies if isinstance(b.shape, Sphere)]
 
 

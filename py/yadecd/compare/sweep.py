@@ -56,15 +56,20 @@ def md_variants(scene, case):
 
 
 def sim_time(scene, case):
+    """Simulated time [s] a run of ``scene`` and ``case`` covers."""
     return {'incline': 0.2, 'column': {10: 0.5, 40: 0.5}.get(case.get('n'), 1.0), 'dimer_column': 0.5, 'mass_ratio': 1.0, 'binary': 0.02,
             'projectile': 0.7 / case.get('speed', 1.0), 'cradle': 0.03}[scene]
 
 
 def md_steps(scene, case, young, safety):
+    """MD steps a run needs at stiffness ``young`` and ``safety`` (its time step is
+    safety·PWaveTimeStep of the lightest sphere)."""
     return sim_time(scene, case) / (safety * 0.01 * (1000.0 / young) ** 0.5)  # PWaveTimeStep of the lightest sphere
 
 
 def plan(quick, only=None):
+    """The list of runs (scene, case, method, settings): the short set with ``quick``, the full
+    sweep otherwise; with ``only``, the runs of those scenes alone."""
     runs = []
     if quick:
         runs += [('incline', {'regime': 'rolling'}, 'CD', dict(dt=1e-3)),
@@ -124,6 +129,7 @@ def key(scene, case, method, p):
 
 
 def case_label(scene, case):
+    """The short label of a case in the tables and the CSV (N=40, e=0.5, v=100...)."""
     return {'incline': lambda: case['regime'], 'column': lambda: 'N=%d' % case['n'], 'dimer_column': lambda: 'N=%d' % case['n'],
             'mass_ratio': lambda: 'ratio=%g' % case['ratio'], 'binary': lambda: 'e=%g' % case['en'],
             'projectile': lambda: 'v=%g' % case['speed'], 'cradle': lambda: 'n=%d' % case['n']}[scene]()
@@ -200,6 +206,7 @@ def run_all(csv_path, quick=False, scenes=None, resume=False, dry_run=False, mom
 # analysis
 
 def num(r, k):
+    """The row's value ``k`` as a float, nan when it is missing or not a number."""
     try:
         v = float(r[k])
     except (KeyError, TypeError, ValueError):
@@ -229,6 +236,8 @@ def strict_error(r):
 
 def cheapest(rows, eps, err=lambda r: num(r, 'error')):
     # 'drifts' is allowed: it matters only when err is not the scene's own error (e.g. velocities only)
+    """The row of ``rows`` with the least wall time per simulated second among those that ran
+    (or only drifted) to an error ``err`` within ``eps``; None when none did."""
     ok = [r for r in rows if r['status'] in ('ok', 'drifts') and err(r) <= eps]
     return min(ok, key=lambda r: num(r, 'wall_per_sim_s')) if ok else None
 
@@ -237,6 +246,8 @@ EPS = (1e-2, 1e-3, 1e-4)
 
 
 def describe(r):
+    """The setting of a row in words (CD: time step, tolerance, and maxIter or ω when not the
+    default; MD: law, stiffness, safety factor and damping)."""
     if r is None:
         return '—'
     if r['method'] == 'CD':
@@ -269,6 +280,8 @@ def summary(rows):
 
 
 def equal_accuracy(rows, cases, err):
+    """The equal-accuracy table (markdown lines): per scene, case and accuracy ε, the cheapest CD and
+    MD runs by ``err`` and their cost ratio, and the same for CD without over-relaxation."""
     lines = ['| scene | case | accuracy ε | CD cost [s/s] (setting) | MD cost [s/s] (setting) | MD/CD | CD plain GS (ω=1) [s/s] | MD/CD(ω=1) |',
              '| --- | --- | --- | --- | --- | --- | --- | --- |']
     for scene, case in cases:
@@ -316,6 +329,8 @@ def boundaries(rs, meth):
 
 
 def summary_rest(rows, cases):
+    """The time-to-accuracy table of the rest scenes (markdown lines): per case and ε, the wall
+    time until the floor-force error stays below ε, cheapest CD and MD runs."""
     lines = []
     rest = [(s_, c_) for s_, c_ in cases if s_ in REST_SCENES]
     if rest:
@@ -355,6 +370,8 @@ MARK = {'ok': 'o', 'drifts': 's', 'stalls': 'D', 'tunnels': 'v', 'explodes': 'X'
 
 
 def figures(rows, figs):
+    """Two charts per scene into ``figs`` (cost against accuracy, and the failure map over the
+    settings); returns the paths written."""
     from matplotlib.figure import Figure
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     os.makedirs(figs, exist_ok=True)

@@ -288,10 +288,15 @@ class Feeder:
         self.count = 0
 
     def refresh(self):
+        """Rebuild the list of spheres near the axis (within reach of a new grain) from all bodies."""
         self.near = [b.id for b in O.bodies if isinstance(b.shape, Sphere)
                      and (b.state.pos[0] ** 2 + b.state.pos[1] ** 2) < (self.reach + 2 * self.p['d_max']) ** 2]
 
     def create(self):
+        """Create the next grain: its centre drawn uniformly over the feed disc, its diameter
+        uniformly in [d_min, d_max], placed at the lowest height on that vertical where it rests on
+        a sphere or the floor without overlapping any (:func:`creation_height`; a clump turned at
+        random, :func:`grains.resting_height`); records its birth time; returns its body id."""
         if self.count % 20 == 0 or not self.near:
             self.refresh()
         p, rng = self.p, self.rng
@@ -328,7 +333,9 @@ class Clock:
         self.t0, self.i0 = t0, i0
 
     def time(self):
+        """The run's simulated time [s]."""
         return self.t0 + O.time
 
     def iter(self):
+        """The run's step count."""
         return self.i0 + O.iter

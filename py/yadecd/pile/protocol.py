@@ -148,6 +148,7 @@ BRANCH_MAY_CHANGE = RESUME_MAY_CHANGE + ('tolerance', 'max_iter', 'correction_mo
 
 
 def epoch_list(epochs):
+    """The snapshot times [s] of a comma-separated string, sorted; ValueError names a bad one."""
     try:
         return sorted(float(t) for t in str(epochs).split(',') if t.strip())
     except ValueError:

@@ -26,6 +26,7 @@ import sys
 import time
 
 from ..io import write_json_atomic
+from ..pile.grains import SHAPES
 from ..pile.protocol import DEFAULTS, feed_time
 from . import cost as runcost
 from .carry import is_done
@@ -98,14 +99,17 @@ class Ensemble:
     def plan(self, sizes, seeds, relax, options):
         """Add the runs sizes x seeds (existing records are kept). ``options`` are extra pile.py
         options (list of strings) applied to every run of the ensemble; they may not change once
-        runs exist."""
+        runs exist, and a grain shape must be known (:data:`yadecd.pile.grains.SHAPES`): a bad one
+        is refused here, before any pile starts, not by each pile's YADE process."""
+        shape = option_text(options, '--grain-shape', 'sphere')
+        if shape not in SHAPES:
+            raise ValueError('--grain-shape %r is not a grain shape (known: %s)' % (shape, ', '.join(SHAPES)))
         old = self.data.get('plan', {})
         if old and self.data['runs'] and (old.get('relax') != relax or old.get('options') != list(options)):
             raise ValueError('ensemble %s was planned with relax=%r options=%r; got relax=%r options=%r '
                              '(use another directory)' % (self.root, old.get('relax'), old.get('options'),
                                                           relax, list(options)))
         self.data['plan'] = {'relax': relax, 'options': list(options)}
-        shape = option_text(options, '--grain-shape', 'sphere')
         for n in sizes:
             for s in seeds:
                 name = run_name(n, s, shape)
@@ -114,6 +118,7 @@ class Ensemble:
         self.save()
 
     def runs(self):
+        """The runs of the ensemble: ``{name: record}`` (grains, seed, state, attempts, ...)."""
         return self.data['runs']
 
 

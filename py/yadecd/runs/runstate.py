@@ -87,6 +87,7 @@ def plugin_digest():
 
 
 def yade_version():
+    """YADE's version string, or 'unknown' outside YADE."""
     try:
         import yade.config
         return str(yade.config.version)
