@@ -91,13 +91,8 @@ fi
 say "building the Contact Dynamics plugin"
 cmake -S "$REPO" -B "$REPO/build" -G Ninja -DYADE_PREFIX="$YADE_PREFIX" -DCMAKE_BUILD_TYPE=Release > /dev/null
 cmake --build "$REPO/build" -j"${YADE_JOBS:-$(nproc)}"
-# cmake --install rewrites an installed file in place (the same inode): a YADE running from this
-# prefix (a pile of a long run) has the plugin mapped and would crash on the new bytes. Give the
-# path a fresh inode first; running processes keep the old one.
-PLUGIN_SO="$YADE_LIBDIR/plugins/libpkg_contactdynamics.so"
-if [ -f "$PLUGIN_SO" ]; then
-  cp -p "$PLUGIN_SO" "$PLUGIN_SO.new.$$" && mv -f "$PLUGIN_SO.new.$$" "$PLUGIN_SO"
-fi
+# the plugin is renamed into place, never rewritten (CMakeLists.txt): a YADE running from this
+# prefix (a pile of a long run) keeps the library it mapped
 cmake --install "$REPO/build" > /dev/null
 say "plugin installed into $YADE_LIBDIR"
 

@@ -17,9 +17,11 @@ void Ip2_FrictMat_FrictMat_CDPhys::go(const shared_ptr<Material>& m1, const shar
 {
 	if (I->phys) return; // keep the existing contact and its warm-start impulse
 	auto       phys = shared_ptr<CDPhys>(new CDPhys);
-	const Real phi  = math::min(static_cast<FrictMat*>(m1.get())->frictionAngle, static_cast<FrictMat*>(m2.get())->frictionAngle);
-	// A bad friction angle is reported by the integrator (outside OpenMP regions), see gatherContacts.
-	phys->tangensOfFrictionAngle = math::tan(phi);
+	const Real phi1 = static_cast<FrictMat*>(m1.get())->frictionAngle, phi2 = static_cast<FrictMat*>(m2.get())->frictionAngle;
+	const auto valid = [](Real phi) { return phi >= 0 && phi < Mathr::HALF_PI; };
+	// A bad friction angle (either material's) is reported by the integrator (outside OpenMP regions), see
+	// gatherContacts: NaN here, since tan() of an angle past π/2 can be a plausible coefficient (tan(π + 0.1) = 0.1).
+	phys->tangensOfFrictionAngle = (valid(phi1) && valid(phi2)) ? math::tan(math::min(phi1, phi2)) : Real(NaN);
 	phys->en                     = en;
 	phys->et                     = et;
 	I->phys                      = phys;

@@ -40,9 +40,9 @@ public:
 	FUNCTOR2D(FrictMat, FrictMat);
 	// clang-format off
 	YADE_CLASS_BASE_DOC_ATTRS(Ip2_FrictMat_FrictMat_CDPhys, IPhysFunctor,
-		"Create a :yref:`CDPhys` from two :yref:`FrictMat`: friction coefficient μ = tan(min(φ1, φ2)) from the materials' :yref:`frictionAngle<FrictMat.frictionAngle>`; restitution from :yref:`en<Ip2_FrictMat_FrictMat_CDPhys.en>` and :yref:`et<Ip2_FrictMat_FrictMat_CDPhys.et>`. Stiffness and Young's modulus are ignored: contacts are rigid.",
-		((Real, en, 0, Attr::triggerPostLoad, "Normal restitution coefficient given to new contacts, in [0,1]."))
-		((Real, et, 0, Attr::triggerPostLoad, "Tangential restitution coefficient given to new contacts, in [-1,1]."))
+		"Create a :yref:`CDPhys` from two :yref:`FrictMat`: friction coefficient μ = tan(min(φ1, φ2)) from the materials' :yref:`frictionAngle<FrictMat.frictionAngle>` (each in [0, π/2): a contact between materials outside it fails the next step, naming the pair); restitution from :yref:`en<Ip2_FrictMat_FrictMat_CDPhys.en>` and :yref:`et<Ip2_FrictMat_FrictMat_CDPhys.et>`. Stiffness and Young's modulus are ignored: contacts are rigid.",
+		((Real, en, 0, Attr::triggerPostLoad, "Normal restitution coefficient given to new contacts [-], in [0,1]."))
+		((Real, et, 0, Attr::triggerPostLoad, "Tangential restitution coefficient given to new contacts [-], in [-1,1]."))
 	);
 	// clang-format on
 };

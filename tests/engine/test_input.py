@@ -1,6 +1,7 @@
 """Bad input: every case raises a clear Python exception naming the culprit, and leaves the
 scene as it was (a failed step moves nothing)."""
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
+import math
 import unittest
 
 from yade import O, utils
@@ -62,7 +63,9 @@ class TestBadInput(unittest.TestCase):
             O.dt = -1e-4
 
     def test_friction(self):
-        for angle in (-0.1, float('nan')):
+        """A friction angle outside [0, π/2) fails the step naming the contact: negative, NaN, π/2
+        itself, and π + 0.1, whose tangent (0.1) would otherwise pass for a coefficient."""
+        for angle in (-0.1, float('nan'), math.pi / 2, math.pi + 0.1):
             sc = scenes.column(2)
             O.materials[0].frictionAngle = angle
             self.assertStepFails(ValueError, 'friction', '#0', '#%d' % sc['ids'][0])
