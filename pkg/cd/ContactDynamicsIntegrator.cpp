@@ -122,8 +122,9 @@ Real ContactDynamicsIntegrator::alertDistance(const Scene* scene, Real rmin, Rea
 
 boost::python::tuple ContactDynamicsIntegrator::pySolveLocal(const Matrix3r& W, const Vector3r& b, Real mu)
 {
-	if (!(mu >= 0)) throw std::invalid_argument("solveLocal: mu must be ≥ 0.");
-	if (W.ldlt().info() != Eigen::Success || !(W.diagonal().minCoeff() > 0)) throw std::invalid_argument("solveLocal: W must be symmetric positive definite.");
+	if (!(mu >= 0) || !std::isfinite(mu)) throw std::invalid_argument("solveLocal: mu must be a finite number ≥ 0.");
+	const bool symmetric = W.allFinite() && (W - W.transpose()).norm() <= 1e-12 * W.norm();
+	if (!symmetric || W.llt().info() != Eigen::Success) throw std::invalid_argument("solveLocal: W must be symmetric positive definite.");
 	Vector3r r = Vector3r::Zero();
 	const int status = int(cd::solveLocal(W, b, mu, r));
 	return boost::python::make_tuple(r, status);
@@ -168,7 +169,12 @@ boost::python::dict ContactDynamicsIntegrator::pyProblem() const
 	return d;
 }
 
-Vector3r ContactDynamicsIntegrator::pyResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho) { return cd::naturalMapResidual(r, U, mu, rho); }
+Vector3r ContactDynamicsIntegrator::pyResidual(const Vector3r& r, const Vector3r& U, Real mu, Real rho)
+{
+	if (!(rho > 0) || !std::isfinite(rho)) throw std::invalid_argument("naturalMapResidual: rho must be a finite number > 0.");
+	if (!(mu >= 0) || !std::isfinite(mu)) throw std::invalid_argument("naturalMapResidual: mu must be a finite number ≥ 0.");
+	return cd::naturalMapResidual(r, U, mu, rho);
+}
 
 // ----------------------------------------------------------------------------- the step
 

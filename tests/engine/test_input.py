@@ -53,6 +53,26 @@ class TestBadInput(unittest.TestCase):
                 Ip2_FrictMat_FrictMat_CDPhys(**kw)
             self.assertIn(word, str(cm.exception))
 
+    def test_local_problem_helpers(self):
+        """solveLocal refuses a W that is not symmetric positive definite (a non-symmetric one, and
+        an indefinite symmetric one with a positive diagonal, which an LDLT factorisation accepts)
+        and a negative or infinite mu; naturalMapResidual refuses rho <= 0. A valid call still
+        solves: an isolated sticking contact gets r = −W⁻¹b exactly."""
+        CDI = ContactDynamicsIntegrator
+        b = Vector3(-1, 0.1, 0)
+        for W, word in ((Matrix3(2, 1, 0, 0, 2, 0, 0, 0, 2), 'symmetric positive definite'),
+                        (Matrix3(1, 2, 0, 2, 1, 0, 0, 0, 1), 'symmetric positive definite')):
+            with self.assertRaisesRegex(ValueError, word):
+                CDI.solveLocal(W, b, 0.5)
+        for mu in (-0.1, float('inf')):
+            with self.assertRaisesRegex(ValueError, 'mu must be'):
+                CDI.solveLocal(Matrix3(1, 0, 0, 0, 1, 0, 0, 0, 1), b, mu)
+        with self.assertRaisesRegex(ValueError, 'rho must be'):
+            CDI.naturalMapResidual(Vector3(1, 0, 0), Vector3(0, 0, 0), 0.5, 0.0)
+        r, status = CDI.solveLocal(Matrix3(1, 0, 0, 0, 1, 0, 0, 0, 1), b, 0.5)
+        self.assertEqual(status, 1)
+        self.assertEqual(tuple(r), (1.0, -0.1, 0.0))
+
     def test_time_step(self):
         scenes.column(2)
         for dt in (0.0, float('nan'), float('inf')):

@@ -64,9 +64,8 @@ namespace cd {
 		 *  ignored by the other kinds). */
 		void build(int kind, ContactSet& set, const std::vector<BodyRecord>& records, int slabs, int across, bool ownBodies, const Vector3r& up);
 
-		/*! Call f(range, begin, end) for every range, stage by stage (backwards: stages in reverse
-		 *  order, and f is told to walk its range backwards), the ranges of a parallel stage on
-		 *  all threads. */
+		/*! Call f(range, begin, end) for every range, stage by stage, the ranges of a parallel
+		 *  stage on all threads. */
 		template <class F> void run(F&& f) const
 		{
 			for (const Stage& st : stages) {
@@ -80,6 +79,9 @@ namespace cd {
 					f(i, bounds[i], bounds[i + 1]);
 			}
 		}
+		/*! The same with the stages in reverse order; the ranges of a stage are handed out as in
+		 *  run(), and f itself decides the direction it walks its range (the position correction's
+		 *  downward sweeps walk each range from its end). */
 		template <class F> void runBackwards(F&& f) const
 		{
 			for (auto st = stages.rbegin(); st != stages.rend(); ++st) {
