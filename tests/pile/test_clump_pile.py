@@ -139,7 +139,10 @@ class TestClumpPile(unittest.TestCase):
             saved = json.load(f)
         self.assertLessEqual(saved['n_pile_grains'], 30)
         self.assertGreaterEqual(saved['n_pile_grains'], 27)
-        self.assertTrue(0.8 < saved['floor_load_over_weight'] <= 1.05)
+        # 0.919 here (the rest on the plane between paving grains); a weight summed over the members
+        # (8.38 a³ per dimer instead of their union's 7.07 a³) would read 0.78
+        self.assertGreater(saved['floor_load_over_weight'], 0.88)
+        self.assertLessEqual(saved['floor_load_over_weight'], 1.0 + 1e-9)
 
     def test_snapshot_scenes_are_for_spheres(self):
         """A scene is rebuilt from a snapshot for sphere piles only: a clump pile's snapshot is

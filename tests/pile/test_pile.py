@@ -213,12 +213,7 @@ class TestTinyPile(unittest.TestCase):
         self.assertEqual(saved['n_pile_grains'], 60 - flying.sum())
         self.assertLessEqual(flying.sum(), 3)
         self.assertTrue((np.linalg.norm(snap['vel'][flying], axis=1) > 0.01).all())
-        # a 60-grain pile is about 3 grains high: no straight flank, and the summary says so
-        self.assertIsNone(saved['slope_deg'])
-        self.assertIn('no straight flank', saved['slope_note'])
         self.assertTrue(math.isfinite(saved['chord_angle_deg']) and math.isfinite(saved['p_center_Pa']))
-        # grains still moving or resting on the wall between paving grains are not floor load
-        self.assertTrue(0 < saved['floor_load_over_weight'] <= 1.05)
 
 
 class TestConeState(unittest.TestCase):
