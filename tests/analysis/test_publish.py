@@ -13,7 +13,7 @@ import unittest
 from repo_package import REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
 from yadecd.analysis import ensemble as pea
 from yadecd.analysis import ensemble_report
-from yadecd.analysis.publish import DOCS_PLACES, check_docs_root, docs_place, publish
+from yadecd.analysis.publish import DOCS_PLACES, check_docs_root, docs_place, finished_places, publish, publish_finished
 
 DOCS = os.path.join(REPO, 'docs')
 
@@ -104,8 +104,38 @@ class TestPublish(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, 'missing is not a directory'):
             publish(os.path.join(self.tmp, 'missing'), docs_tree(os.path.join(self.tmp, 'docs')))
 
+    def test_finished_run(self):
+        """A finished long run's outputs (the layout yadecd.analysis.finish writes) go to
+        figures/<run>_<epoch>/, replacing a stale directory whole, and data/tolerance_effect_<run>_<epoch>.json;
+        an epoch without figures copies its record only."""
+        out = os.path.join(self.tmp, 'finish')
+        for epoch, files in (('relaxed', ('fig5_ground_pressure.png', 'paper_table.md')), ('feed', ())):
+            os.makedirs(os.path.join(out, epoch, 'figures') if files else os.path.join(out, epoch))
+            for name in files:
+                with open(os.path.join(out, epoch, 'figures', name), 'w') as f:
+                    f.write(name)
+            with open(os.path.join(out, epoch, 'tolerance_effect.json'), 'w') as f:
+                json.dump({'epoch': epoch}, f)
+        docs = docs_tree(os.path.join(self.tmp, 'docs'))
+        stale = os.path.join(docs, 'figures', 'n14000_s2_relaxed')
+        os.makedirs(stale)
+        with open(os.path.join(stale, 'fig9_old.png'), 'w') as f:
+            f.write('old')
+        written = publish_finished(out, 'n14000_s2', ['relaxed', 'feed'], docs)
+        self.assertEqual(finished_places('n14000_s2', 'feed'),
+                         ('figures/n14000_s2_feed', 'data/tolerance_effect_n14000_s2_feed.json'))
+        self.assertEqual([os.path.relpath(w, docs) for w in written],
+                         ['figures/n14000_s2_relaxed', 'data/tolerance_effect_n14000_s2_relaxed.json',
+                          'data/tolerance_effect_n14000_s2_feed.json'])
+        self.assertEqual(sorted(os.listdir(stale)), ['fig5_ground_pressure.png', 'paper_table.md'])
+        with open(os.path.join(docs, 'data', 'tolerance_effect_n14000_s2_feed.json')) as f:
+            self.assertEqual(json.load(f), {'epoch': 'feed'})
+        self.assertFalse(os.path.exists(os.path.join(docs, 'figures', 'n14000_s2_feed')))
+        with self.assertRaises(ValueError):
+            publish_finished(out, 'n14000_s2', ['feed'], os.path.join(self.tmp, 'nodocs'))
+
     def test_command_lines_refuse_a_wrong_docs_tree(self):
-        """Both commands exit 2 on a wrong --docs before any analysis (no output directory made)."""
+        """The three commands exit 2 on a wrong --docs before any analysis (no output directory made)."""
         out = os.path.join(self.tmp, 'out')
         wrong = os.path.join(self.tmp, 'nodocs')
         os.makedirs(os.path.join(self.tmp, 'run'))
@@ -114,6 +144,8 @@ class TestPublish(unittest.TestCase):
         for argv in ([os.path.join(SCRIPTS, 'pile_growth.py'), os.path.join(self.tmp, 'run'), '--out', out,
                       '--docs', wrong],
                      [os.path.join(SCRIPTS, 'pile_ensemble.py'), 'analyse', self.tmp, '--figures', out,
+                      '--docs', wrong],
+                     [os.path.join(SCRIPTS, 'pile_finish.py'), os.path.join(self.tmp, 'run'), '--out', out,
                       '--docs', wrong]):
             r = subprocess.run([sys.executable] + argv, capture_output=True, text=True, timeout=120)
             self.assertEqual(r.returncode, 2, r.stderr)

@@ -1,7 +1,9 @@
 """Where the analyses' outputs live in ``docs/``: one table, used by every ``--docs`` option.
 
 The ensemble analysis (``pile_ensemble.py analyse``) and the growth curves (``pile_growth.py``)
-write their tables and figures into one output directory. The documentation keeps them in two
+write their tables and figures into one output directory; a finished long run
+(``pile_finish.py``, :mod:`.finish`) writes per epoch a figures directory and the tolerance
+record of its tight re-solve (:func:`publish_finished`). The documentation keeps them in two
 places: tables and JSON under ``docs/data/`` (listed in ``docs/data/README.md``), figures under
 ``docs/figures/``. :data:`DOCS_PLACES` says which file goes where, so that refreshing the docs
 after new runs is one option of the command that made the outputs, not a list of copies done by
@@ -66,3 +68,36 @@ def publish(out_dir, docs_root, log=None):
         if log:
             log('docs: %s -> %s' % (name, os.path.relpath(dest, docs_root)))
     return copied
+
+
+def finished_places(name, epoch):
+    """Where a finished long run's epoch goes under the docs root: (figures directory, tolerance
+    record), e.g. ``figures/n14000_s2_relaxed`` and ``data/tolerance_effect_n14000_s2_relaxed.json``."""
+    return (os.path.join('figures', '%s_%s' % (name, epoch)),
+            os.path.join('data', 'tolerance_effect_%s_%s.json' % (name, epoch)))
+
+
+def publish_finished(out_dir, name, epochs, docs_root, log=None):
+    """Copy what :func:`.finish.finish` wrote in ``out_dir`` for run ``name`` and each of
+    ``epochs`` to its place under ``docs_root`` (:func:`finished_places`): the epoch's figures
+    directory, replaced whole (no figure of an earlier finish stays beside the new ones), and its
+    ``tolerance_effect.json``. An epoch without figures copies its record only. Returns the
+    destinations written."""
+    check_docs_root(docs_root)
+    written = []
+    for epoch in epochs:
+        fig_dest, tol_dest = (os.path.join(docs_root, p) for p in finished_places(name, epoch))
+        figures = os.path.join(out_dir, epoch, 'figures')
+        if os.path.isdir(figures):
+            if os.path.isdir(fig_dest):
+                shutil.rmtree(fig_dest)
+            shutil.copytree(figures, fig_dest)
+            written.append(fig_dest)
+        tol = os.path.join(out_dir, epoch, 'tolerance_effect.json')
+        if os.path.isfile(tol):
+            shutil.copyfile(tol, tol_dest)
+            written.append(tol_dest)
+        if log:
+            for w in written[-2:]:
+                log('docs: %s' % os.path.relpath(w, docs_root))
+    return written
