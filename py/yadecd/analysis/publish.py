@@ -88,16 +88,17 @@ def publish_finished(out_dir, name, epochs, docs_root, log=None):
     for epoch in epochs:
         fig_dest, tol_dest = (os.path.join(docs_root, p) for p in finished_places(name, epoch))
         figures = os.path.join(out_dir, epoch, 'figures')
+        here = []
         if os.path.isdir(figures):
             if os.path.isdir(fig_dest):
                 shutil.rmtree(fig_dest)
             shutil.copytree(figures, fig_dest)
-            written.append(fig_dest)
+            here.append(fig_dest)
         tol = os.path.join(out_dir, epoch, 'tolerance_effect.json')
         if os.path.isfile(tol):
             shutil.copyfile(tol, tol_dest)
-            written.append(tol_dest)
-        if log:
-            for w in written[-2:]:
-                log('docs: %s' % os.path.relpath(w, docs_root))
+            here.append(tol_dest)
+        for w in here if log else ():
+            log('docs: %s' % os.path.relpath(w, docs_root))
+        written += here
     return written
