@@ -117,8 +117,8 @@ def finish(run_dir, out_dir, repo, epochs=EPOCHS, tight=1e-6, max_iter=600000, t
         path = os.path.join(records_dir, ens_analysis.record_file(name, epoch))
         with open(path, 'w') as f:
             json.dump(rec, f)
-        log('%s: record %s (slope %.1f deg, D %+.2f)' % (epoch, path, rec['slope_deg'] or float('nan'),
-                                                        rec['dip_D'] if rec['dip_D'] is not None else float('nan')))
+        log('%s: record %s (slope %.1f deg, D %+.2f)' % (epoch, path, ens_analysis.finite_or_nan(rec['slope_deg']),
+                                                        ens_analysis.finite_or_nan(rec['dip_D'])))
         if figures:
             report.analyse(snap, os.path.join(epoch_dir, 'figures'), fossil=fossil)
             log('%s: figures in %s' % (epoch, os.path.join(epoch_dir, 'figures')))
