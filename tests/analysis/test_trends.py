@@ -12,6 +12,7 @@ import numpy as np
 
 from repo_package import DATA, REPO, SCRIPTS  # noqa: F401  (first: this checkout's yadecd)
 from yadecd.analysis import trends
+from yadecd.analysis.stats import t_cdf
 from yadecd.pile.protocol import DEFAULTS
 
 
@@ -80,7 +81,12 @@ class TestTrends(unittest.TestCase):
             with open(os.path.join(out, 'size_trend.md')) as f:
                 table = f.read()
         self.assertIn('sphere', got)
-        rows = [line for line in table.splitlines()[2:] if line.startswith('|')]
+        first, largest = table.split('\n\n', 1)
+        rows = [line for line in first.splitlines()[2:] if line.startswith('|')]
+        # the largest size against the smaller sizes' line: spheres only (dimers have two sizes)
+        self.assertIn('largest_against_line', largest)
+        self.assertEqual([r.split(' | ')[:3] for r in largest.splitlines() if r.startswith('| sphere')],
+                         [['| sphere', 'relaxed', 'central dip D'], ['| sphere', 'relaxed', 'flank slope']])
         # relaxed records only: spheres' D over both ranges, their slope once (the 300-grain piles have
         # none, so the second range would repeat it); dimers' D and slope once
         self.assertEqual(len(rows), 5)
@@ -104,6 +110,49 @@ class TestTrends(unittest.TestCase):
         self.assertTrue(rows[0].startswith('| sphere | 1000 | 2 | 26.5° [20.1°, 32.9°] | +0.25 ['), rows[0])
         self.assertTrue(rows[1].startswith('| sphere | 2000 | 2 | 28.0° [28.0°, 28.0°] | -0.20 ['), rows[1])
         self.assertEqual(rows[2], '| sphere | 14000 | 1 | 26.0° | +0.50 [+0.20, +0.80] (over its sectors) | 99.5 % (one pile) | 0.500 |')
+
+    def test_largest_against_line_known(self):
+        """Piles at 1000-5000 grains on an exact line with offsets -0.05, 0, +0.05 (eight seeds' worth:
+        the offsets repeat), three piles at 14 000 grains 0.1, 0.2 and 0.3 above the line: the line's
+        value there, their mean 0.2 above it, the se of a mean of three, t and the one-sided p; a
+        pile fed over another disc and the 300-grain piles (below min_grains) left out; dimers (two
+        sizes) give none."""
+        def line(n):
+            return 0.4 - 0.1 * math.log10(n)
+        offs = [-0.05, 0.0, 0.05] * 2
+        recs = [record(n, i + 1, 'relaxed', line(n) + o, 26.0 + o) for n in (1000, 2000, 5000) for i, o in enumerate(offs)]
+        recs += [record(14000, i + 1, 'relaxed', line(14000) + d, 26.0 + d) for i, d in enumerate((0.1, 0.2, 0.3))]
+        recs += [record(300, 1, 'relaxed', 9.0, 26.0), record(5000, 9, 'relaxed', 9.0, 26.0, feed=0.004),
+                 record(1000, 1, 'relaxed', 0.0, 30.0, 'dimer'), record(2000, 1, 'relaxed', 0.0, 30.0, 'dimer')]
+        got = trends.largest_against_line(recs, 'relaxed', 'dip_D')
+        self.assertEqual(list(got), ['sphere'])
+        c = got['sphere']
+        self.assertEqual((c['n_grains'], c['m'], c['df']), (14000, 3, 16))
+        self.assertAlmostEqual(c['line'], line(14000), places=12)
+        self.assertAlmostEqual(c['mean'] - c['line'], 0.2, places=12)
+        x = np.log10(np.repeat([1000.0, 2000.0, 5000.0], 6))
+        s = math.sqrt(6 * 3 * 0.05 ** 2 * 2 / 3 / 16)       # residuals: the offsets, sum of squares 18·(2/3)·0.05²
+        se = s * math.sqrt(1 / 3 + 1 / 18 + (math.log10(14000) - x.mean()) ** 2 / ((x - x.mean()) ** 2).sum())
+        self.assertAlmostEqual(c['se'], se, places=12)
+        self.assertAlmostEqual(c['t'], 0.2 / se, places=10)
+        self.assertAlmostEqual(c['p_above'], 1 - t_cdf(0.2 / se, 16), places=12)
+        # the slope: a flat line at 26° plus the same offsets
+        self.assertAlmostEqual(trends.largest_against_line(recs, 'relaxed', 'slope_deg')['sphere']['line'], 26.0, places=10)
+
+    def test_largest_against_line_calibrated(self):
+        """With the largest piles on the smaller sizes' line (the same scatter), p_above < 0.05 comes
+        5 % of the time (1 000 constructed ensembles of this design, 0.029-0.071 is three binomial
+        errors); with them 0.6 above it (two scatters), most of the time."""
+        rng = np.random.default_rng(30)
+        for shift, lo, hi in ((0.0, 0.029, 0.071), (0.6, 0.8, 1.0)):
+            hits = 0
+            for _ in range(1000):
+                recs = [record(n, seed, 'relaxed', 0.2 - 0.1 * math.log10(n) + 0.25 * rng.normal(), 26.0)
+                        for n in (1000, 2000, 5000) for seed in range(1, 9)]
+                recs += [record(14000, seed, 'relaxed', 0.2 - 0.1 * math.log10(14000) + shift + 0.25 * rng.normal(), 26.0)
+                         for seed in (1, 2, 3)]
+                hits += trends.largest_against_line(recs, 'relaxed', 'dip_D')['sphere']['p_above'] < 0.05
+            self.assertTrue(lo <= hits / 1000 <= hi, (shift, hits))
 
     def test_nothing_to_fit(self):
         recs = [record(1000, s, 'relaxed', 0.1 * s, 26.0) for s in (1, 2, 3)]

@@ -353,18 +353,22 @@ def size_trend(n_grains, values):
     return out
 
 
-def line_prediction(x, y, x0):
-    """Where the least-squares line of ``y`` on ``x`` puts one new value at ``x0``, and how far a
-    single new value may fall from it: the 95 % prediction interval (Student's t, n − 2 degrees of
-    freedom; s·√(1 + 1/n + (x0 − x̄)²/Sxx), the line's own uncertainty at x0 included, which grows
-    away from the data: an extrapolation is wider than the scatter alone).
+def line_prediction(x, y, x0, m=1):
+    """Where the least-squares line of ``y`` on ``x`` puts new values at ``x0``, and how far the
+    mean of ``m`` new values (independent, the line's scatter each) may fall from it: the 95 %
+    prediction interval (Student's t, n − 2 degrees of freedom; s·√(1/m + 1/n + (x0 − x̄)²/Sxx),
+    the line's own uncertainty at x0 included, which grows away from the data: an extrapolation is
+    wider than the scatter alone). ``m = 1`` is one new value.
 
-    :returns: dict ``value``, ``se`` (of a new value), ``ci95``, ``df``; nan with fewer than 3
-        points or a single distinct x."""
+    :returns: dict ``value``, ``se`` (of the mean of m new values), ``ci95``, ``df``, ``m``; nan
+        with fewer than 3 points or a single distinct x.
+    :raises ValueError: when ``m`` is not a positive integer."""
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+        raise ValueError('line_prediction: m (new values averaged) must be a positive integer, got %r' % (m,))
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     nan = float('nan')
-    out = {'value': nan, 'se': nan, 'ci95': (nan, nan), 'df': len(x) - 2}
+    out = {'value': nan, 'se': nan, 'ci95': (nan, nan), 'df': len(x) - 2, 'm': int(m)}
     a, b, se_b = linear_fit(x, y)
     if not math.isfinite(se_b):
         return out
@@ -372,6 +376,6 @@ def line_prediction(x, y, x0):
     s = math.sqrt(((y - a - b * x) ** 2).sum() / (n - 2))
     sxx = ((x - x.mean()) ** 2).sum()
     value = a + b * x0
-    se = s * math.sqrt(1 + 1 / n + (x0 - x.mean()) ** 2 / sxx)
+    se = s * math.sqrt(1 / m + 1 / n + (x0 - x.mean()) ** 2 / sxx)
     q = t_quantile(0.975, n - 2)
-    return {'value': float(value), 'se': se, 'ci95': (value - q * se, value + q * se), 'df': n - 2}
+    return {'value': float(value), 'se': se, 'ci95': (value - q * se, value + q * se), 'df': n - 2, 'm': int(m)}

@@ -9,6 +9,7 @@ one-sided confidence that the slope is positive. Piles fed over another disc tha
 are left out (a different experiment: docs/pile.md, "Against the literature"); the time step
 and tolerance may differ between sizes (the faster protocol, validated against the seed scatter).
 """
+import math
 import os
 
 import numpy as np
@@ -17,7 +18,7 @@ from ..pile.protocol import DEFAULTS
 from . import figures as pf
 from .ensemble import feed_radius_of
 from .shapes import by_shape, shape_stats, SHAPE_STYLE
-from .stats import size_trend
+from .stats import line_prediction, size_trend, t_cdf
 
 #: observables whose size trend is reported: record key -> (name, unit, format of a value)
 KEYS = {'dip_D': ('central dip D', '', '%+.3f'), 'slope_deg': ('flank slope', '°', '%+.2f')}
@@ -55,6 +56,54 @@ def size_trends(records, epochs=('feed', 'relaxed'), ranges=RANGES):
                 if len(set(n)) >= 2:
                     out.setdefault(shape, {}).setdefault(label, {})[epoch] = {k: size_trend(n, v) for k, v in vals.items()}
     return out
+
+
+def largest_against_line(records, epoch, key, min_grains=1000):
+    """Does the largest size stand off the line of the smaller ones? Per shape with three sizes or
+    more of ``min_grains`` and up: the least-squares line of ``key`` on log10(grains) over the
+    smaller sizes' piles, the mean of the largest size's m piles, and where the line puts such a
+    mean (:func:`~yadecd.analysis.stats.line_prediction` with ``m``: the scatter of single piles
+    about the line and the line's own uncertainty that far out), with t = (mean − line)/se and
+    the one-sided probability, were the largest piles on the line, of a mean at least that far
+    above it. This is the test the docs apply to the full piles (one, then three) against the
+    1000–5000-grain ensembles.
+
+    :returns: {shape: dict ``n_grains``, ``m``, ``mean``, ``values``, ``line`` (the prediction),
+        ``ci95`` (for a mean of m), ``t``, ``df``, ``p_above``}; shapes without three sizes left out."""
+    out = {}
+    for shape, recs in by_shape(records).items():
+        n, vals = trend_points(recs, epoch, min_grains)
+        y = vals[key]
+        ok = np.isfinite(y)
+        n, y = n[ok], y[ok]
+        sizes = sorted(set(n))
+        if len(sizes) < 3:
+            continue
+        big = n == sizes[-1]
+        p = line_prediction(np.log10(n[~big]), y[~big], math.log10(sizes[-1]), m=int(big.sum()))
+        if not math.isfinite(p['se']) or p['se'] <= 0:
+            continue
+        mean = float(y[big].mean())
+        t = (mean - p['value']) / p['se']
+        out[shape] = {'n_grains': int(sizes[-1]), 'm': int(big.sum()), 'mean': mean, 'values': [float(v) for v in y[big]],
+                      'line': p['value'], 'se': p['se'], 'ci95': p['ci95'], 't': t, 'df': p['df'],
+                      'p_above': 1.0 - t_cdf(t, p['df'])}
+    return out
+
+
+def largest_table_markdown(records, epochs=('feed', 'relaxed'), min_grains=1000):
+    """One row per shape, epoch and observable of :func:`largest_against_line`."""
+    rows = ['| shape | epoch | observable | largest size: piles, their values | their mean | the smaller sizes\' line '
+            'there [95 % for a mean of that many piles] | t (df) | one-sided p above the line |',
+            '| --- | --- | --- | --- | --- | --- | --- | --- |']
+    for epoch in epochs:
+        for key, (name, unit, fmt) in KEYS.items():
+            for shape, c in largest_against_line(records, epoch, key, min_grains).items():
+                fmt_u = fmt + unit
+                rows.append('| %s | %s | %s | %d grains: %d (%s) | %s | %s %s | %.2f (%d) | %.3f |' % (
+                    shape, epoch, name, c['n_grains'], c['m'], ', '.join(fmt_u % v for v in c['values']),
+                    fmt_u % c['mean'], fmt_u % c['line'], _interval(c['ci95'], fmt_u), c['t'], c['df'], c['p_above']))
+    return '\n'.join(rows) + '\n' if len(rows) > 2 else ''
 
 
 def _interval(ci, fmt):
@@ -177,7 +226,7 @@ def answer_table_markdown(records, epoch='relaxed'):
 
 def analyse_trends(records, out_dir):
     """Write ``answer_table.md`` (slope and D per shape and size, relaxed piles), ``size_trend.md``
-    and ``size_trend_{dip,slope}.png`` into ``out_dir``; return the trends ({} and nothing written
+    (the slopes per decade, then the largest size against the smaller sizes' line) and ``size_trend_{dip,slope}.png`` into ``out_dir``; return the trends ({} and nothing written
     when no shape has two sizes)."""
     trends = size_trends(records)
     if not trends:
@@ -186,6 +235,10 @@ def analyse_trends(records, out_dir):
         f.write(answer_table_markdown(records))
     with open(os.path.join(out_dir, 'size_trend.md'), 'w') as f:
         f.write(trend_table_markdown(trends))
+        largest = largest_table_markdown(records)
+        if largest:
+            f.write('\nThe largest size against the line of the smaller ones (piles of 1000 grains and up; '
+                    '`trends.largest_against_line`):\n\n' + largest)
     fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_dip.png'), 'dip_D')
     fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_slope.png'), 'slope_deg')
     return trends
