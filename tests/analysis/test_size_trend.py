@@ -131,16 +131,22 @@ class TestSizeTrend(unittest.TestCase):
             size_trend([0, 1000], [0.1, 0.2])
 
 
+def small_design():
+    """Seven piles at three log-sizes: x, y, the design matrix, the least-squares coefficients and
+    the residual variance, computed directly (the reference for line_prediction)."""
+    x = np.array([3.0, 3.0, 3.3, 3.3, 3.7, 3.7, 3.7])
+    y = np.array([0.1, 0.3, -0.2, 0.2, -0.1, -0.4, 0.0])
+    X = np.column_stack([np.ones_like(x), x])
+    coef = np.linalg.lstsq(X, y, rcond=None)[0]
+    return x, y, X, coef, ((y - X @ coef) ** 2).sum() / (len(x) - 2)
+
+
 class TestLinePrediction(unittest.TestCase):
     """Where a line puts one new pile, with the interval a single new value may fall in."""
 
     def test_matrix_form(self):
         """The same as s²·(1 + x0ᵀ(XᵀX)⁻¹x0) from the design matrix, at a point inside and one far outside."""
-        x = np.array([3.0, 3.0, 3.3, 3.3, 3.7, 3.7, 3.7])
-        y = np.array([0.1, 0.3, -0.2, 0.2, -0.1, -0.4, 0.0])
-        X = np.column_stack([np.ones_like(x), x])
-        coef = np.linalg.lstsq(X, y, rcond=None)[0]
-        s2 = ((y - X @ coef) ** 2).sum() / (len(x) - 2)
+        x, y, X, coef, s2 = small_design()
         for x0 in (3.4, 4.146):
             v = np.array([1.0, x0])
             p = line_prediction(x, y, x0)
@@ -166,11 +172,7 @@ class TestLinePrediction(unittest.TestCase):
 
     def test_mean_of_m_matrix_form(self):
         """The mean of m new values: s²·(1/m + x0ᵀ(XᵀX)⁻¹x0); m = 1 is the single value above."""
-        x = np.array([3.0, 3.0, 3.3, 3.3, 3.7, 3.7, 3.7])
-        y = np.array([0.1, 0.3, -0.2, 0.2, -0.1, -0.4, 0.0])
-        X = np.column_stack([np.ones_like(x), x])
-        coef = np.linalg.lstsq(X, y, rcond=None)[0]
-        s2 = ((y - X @ coef) ** 2).sum() / (len(x) - 2)
+        x, y, X, coef, s2 = small_design()
         v = np.array([1.0, 4.146])
         for m in (1, 3, 8):
             p = line_prediction(x, y, 4.146, m=m)
