@@ -6,7 +6,10 @@ samples, an outlier; the ensemble driver's time-step-aware epochs.
 Pure numpy (runs inside YADE with ``bash tests/run.sh`` and with ``/usr/bin/python3 -m unittest``
 from tests/).
 """
+import json
 import math
+import os
+import tempfile
 import unittest
 
 import numpy as np
@@ -158,6 +161,99 @@ class TestPaired(unittest.TestCase):
         res = pr.paired({'H_m': 0.05}, {'H_m': 0.051}, {'H_m': 0.002}, keys=('H_m',))
         table = pr.paired_markdown([('t = 25 s', res)], '2000 grains')
         self.assertIn('| t = 25 s | apex height H | 5 cm | 5.1 cm | +0.1 cm | +0.50 |', table)
+
+
+
+def write_run(root, name, params, floors):
+    """A run directory: its run.json and one constructed floor per snapshot time {t: (dip, seed)}."""
+    from yadecd.testing import synthetic as sy
+    d = os.path.join(root, name)
+    os.makedirs(d)
+    with open(os.path.join(d, 'run.json'), 'w') as f:
+        json.dump(params, f)
+    for t, (dip, seed) in floors.items():
+        snap, _ = sy.constructed_floor(dip=dip, seed=seed)
+        snap['time'] = t
+        np.savez_compressed(os.path.join(d, 'snap_%08.3f.npz' % t), **{k: v for k, v in snap.items() if k != 'path'})
+    return d
+
+
+class TestOnePileTwoProtocols(unittest.TestCase):
+    """One pile (same grains, seed, feed) under two protocols from the start: what differs, the
+    times shared, each difference against a direct measurement, and the refusals."""
+
+    def setUp(self):
+        self._tmp = tempfile.TemporaryDirectory()
+        self.tmp = self._tmp.name
+        # 10 grains at 5 per second: the feed ends at t = 2 s
+        self.fast = {'n_grains': 10, 'rate': 5.0, 'seed': 1, 'dt': 1e-3, 'tolerance': 3e-3, 'wall_time_s': 5.0,
+                     'sweep_order': 5}
+        self.paper = {'n_grains': 10, 'rate': 5.0, 'seed': 1, 'dt': 2e-4, 'tolerance': 1e-3, 'wall_time_s': 50.0,
+                      'schedule': 'slabs', 'relax': 0.0}
+        self.summary = {'stats': {'10_feed': {'dip_D': {'std': 0.1}}, '10_relaxed': {'dip_D': {'std': 0.2}}}}
+
+    def tearDown(self):
+        self._tmp.cleanup()
+
+    def test_pairing(self):
+        # the renamed sweep order 5 is the schedule 'slabs'; relax absent is the protocol's 0; run time is not a setting
+        self.assertEqual(pr.pairing(self.fast, self.paper), {'dt': (1e-3, 2e-4), 'tolerance': (3e-3, 1e-3)})
+        self.assertEqual(pr.pairing(self.fast, dict(self.fast, relax=2.0)), {'relax': (0.0, 2.0)})
+        self.assertEqual(pr.pairing(self.fast, dict(self.fast, wall_time_total_s=9.0, n_paving=3)), {})
+        with self.assertRaisesRegex(ValueError, 'seed is 1 in one run and 2 in the other'):
+            pr.pairing(self.fast, dict(self.paper, seed=2))
+        with self.assertRaisesRegex(ValueError, 'feed_radius is 0.008 in one run and 0.004'):
+            pr.pairing(self.fast, dict(self.paper, feed_radius=0.004))
+
+    def test_compare_runs(self):
+        from yadecd.analysis.ensemble import run_record
+        a = write_run(self.tmp, 'fast', self.fast, {1.0: (0.3, 1), 2.0: (0.1, 2), 2.5: (0.2, 3)})
+        b = write_run(self.tmp, 'paper', self.paper, {1.0: (0.0, 4), 2.5: (0.5, 5), 3.0: (0.1, 6)})
+        res = pr.compare_runs(a, b, self.summary, '10', log=lambda s: None)
+        self.assertFalse(res['branch'])
+        self.assertEqual(res['start_s'], 0.0)
+        self.assertEqual([e['time_s'] for e in res['epochs']], [1.0, 2.5])          # the shared times
+        self.assertEqual([e['spread_group'] for e in res['epochs']], ['10_feed', '10_relaxed'])
+        for e, spread in zip(res['epochs'], (0.1, 0.2)):
+            name = 'snap_%08.3f.npz' % e['time_s']
+            ra = run_record(os.path.join(a, name), self.fast)['dip_D']
+            rb = run_record(os.path.join(b, name), self.paper)['dip_D']
+            r = e['result']['dip_D']
+            self.assertAlmostEqual(r['delta'], rb - ra, places=12)
+            self.assertAlmostEqual(r['delta_over_spread'], (rb - ra) / spread, places=12)
+        self.assertGreater(res['epochs'][1]['result']['dip_D']['delta'], 0.1)   # constructed dips 0.2 -> 0.5
+        self.assertIn('paper against', res['text'])
+        self.assertIn('dt 0.001 -> 0.0002, tolerance 0.003 -> 0.001', res['text'])
+        self.assertIn('| epoch | observable | run | other | other − run |', res['text'])
+        self.assertEqual(len(pr.compare_runs(a, b, self.summary, '10', times=[2.5], log=lambda s: None)['epochs']), 1)
+        # a branch of another run is compared as a run of the same pile; a branch of this run after its branch point
+        c = write_run(self.tmp, 'branch_of_else', dict(self.paper, branches=[{'source': '/x/else', 'time': 1.5, 'changes': {}}]),
+                      {1.0: (0.0, 4), 2.5: (0.5, 5)})
+        self.assertEqual([e['time_s'] for e in pr.compare_runs(a, c, self.summary, '10', log=lambda s: None)['epochs']], [1.0, 2.5])
+        d = write_run(self.tmp, 'branch_of_fast', dict(self.fast, branches=[{'source': '/elsewhere/fast/', 'time': 1.5,
+                                                                              'changes': {'tolerance': [1e-3, 3e-3]}}]),
+                      {1.0: (0.0, 4), 2.5: (0.5, 5)})
+        res = pr.compare_runs(a, d, self.summary, '10', log=lambda s: None)
+        self.assertTrue(res['branch'])
+        self.assertEqual([e['time_s'] for e in res['epochs']], [2.5])
+        self.assertIn('tolerance 0.001 -> 0.003', res['text'])
+
+    def test_refusals(self):
+        a = write_run(self.tmp, 'fast', self.fast, {1.0: (0.3, 1)})
+        same = write_run(self.tmp, 'same', dict(self.fast, wall_time_s=7.0), {1.0: (0.3, 2)})
+        other_seed = write_run(self.tmp, 'seed2', dict(self.paper, seed=2), {1.0: (0.3, 2)})
+        apart = write_run(self.tmp, 'apart', self.paper, {3.0: (0.3, 2)})
+        with self.assertRaisesRegex(ValueError, 'ran the same protocol'):
+            pr.compare_runs(a, same, self.summary, '10', log=lambda s: None)
+        with self.assertRaisesRegex(ValueError, 'not one pile'):
+            pr.compare_runs(a, other_seed, self.summary, '10', log=lambda s: None)
+        with self.assertRaisesRegex(ValueError, 'share no snapshot'):
+            pr.compare_runs(a, apart, self.summary, '10', log=lambda s: None)
+        with self.assertRaisesRegex(ValueError, r'no snapshot at \[2.0\]'):
+            pr.compare_runs(a, write_run(self.tmp, 'b', self.paper, {1.0: (0.1, 3)}), self.summary, '10', times=[2.0],
+                            log=lambda s: None)
+        with self.assertRaisesRegex(ValueError, 'holds no pile run'):
+            pr.compare_runs(a, self.tmp, self.summary, '10', log=lambda s: None)
 
 
 if __name__ == '__main__':

@@ -74,6 +74,12 @@ class TestScriptInput(unittest.TestCase):
             f.write('{}')
         self.refused('pile_branches.py', [run, branch, '--summary', summary, '--times', 'abc', '--out', self.out()],
                      "--times must be comma-separated times in seconds (got 'abc')")
+        other = os.path.join(self.tmp, 'other')      # not a branch: must be the same pile (seed, grains, feed)
+        os.makedirs(other)
+        with open(os.path.join(other, 'run.json'), 'w') as f:
+            json.dump({'n_grains': 10, 'seed': 2}, f)
+        self.refused('pile_branches.py', [run, other, '--summary', summary, '--out', self.out()],
+                     'not one pile under two protocols: seed is 1 in one run and 2 in the other')  # absent: the protocol's seed 1
 
 
 if __name__ == '__main__':

@@ -264,9 +264,10 @@ def ensemble_spreads(summary, group):
     return {k: v['std'] for k, v in stats[group].items() if isinstance(v, dict) and 'std' in v}
 
 
-def paired_markdown(rows, spread_source):
-    """A markdown table of :func:`paired` results: rows is a list of (epoch label, result)."""
-    lines = ['| epoch | observable | run | branch | branch − run | in seed spreads (%s) |' % spread_source,
+def paired_markdown(rows, spread_source, other='branch'):
+    """A markdown table of :func:`paired` results: rows is a list of (epoch label, result);
+    ``other`` names the second run's column (a branch, or another run of the same pile)."""
+    lines = ['| epoch | observable | run | {0} | {0} − run | in seed spreads ({1}) |'.format(other, spread_source),
              '| --- | --- | --- | --- | --- | --- |']
     for label, res in rows:
         for key, r in res.items():
@@ -277,3 +278,97 @@ def paired_markdown(rows, spread_source):
             lines.append('| %s | %s | %s | %s | %s | %s |' % (label, name, f(r['ref']), f(r['branch']),
                                                             ('%+.4g%s' % (r['delta'] * factor, u)) if math.isfinite(r['delta']) else 'n/a', ratio))
     return '\n'.join(lines) + '\n'
+
+
+#: What two runs must share to be one pile under two protocols: the same grains, fed in the same
+#: order at the same places (the seed draws them), so that their difference at a shared time is
+#: the protocols' effect plus the divergence any change makes in a granular pile.
+PAIRED_BY = ('n_grains', 'seed', 'grain_shape', 'd_min', 'd_max', 'rate', 'feed_radius')
+
+#: ``run.json`` entries that record how a run went or how it was kept, not what it computed.
+BOOKKEEPING = frozenset(('branches', 'checkpoint_every', 'epochs', 'finished', 'n_paving', 'parallel_min_contacts',
+                         'snap_every', 'stop_time', 'stopped_by', 'unconverged_steps', 'vtk', 'wall_time_s',
+                         'wall_time_total_s'))
+
+
+def _same(a, b):
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool) and not isinstance(b, bool):
+        return math.isclose(a, b, rel_tol=1e-12, abs_tol=0.0)
+    return a == b
+
+
+def pairing(params_a, params_b):
+    """How run b's parameters differ from run a's, for a paired comparison of one pile under two
+    protocols: {key: (a's value, b's value)} over the parameters both runs record (or that have a
+    protocol default, :data:`yadecd.pile.protocol.PROTOCOL`), renamed ones mapped
+    (:func:`yadecd.pile.protocol.upgrade`), :data:`BOOKKEEPING` left out.
+
+    :raises ValueError: naming the parameter, when the two are not one pile (:data:`PAIRED_BY`)."""
+    from ..pile.protocol import PROTOCOL, upgrade
+    a, b = upgrade(params_a), upgrade(params_b)
+
+    def value(p, k):
+        return p.get(k, PROTOCOL.get(k))
+    for k in PAIRED_BY:
+        if not _same(value(a, k), value(b, k)):
+            raise ValueError('not one pile under two protocols: %s is %r in one run and %r in the other'
+                             % (k, value(a, k), value(b, k)))
+    changes = {}
+    for k in sorted((set(a) | set(b)) - BOOKKEEPING - set(PAIRED_BY)):
+        if (k in a and k in b) or k in PROTOCOL:
+            if not _same(value(a, k), value(b, k)):
+                changes[k] = (value(a, k), value(b, k))
+    return changes
+
+
+def compare_runs(run, other, summary, group, times=None, log=print):
+    """One pile under two protocols, observable by observable, at the snapshot times the two runs
+    share: ``other`` is either a branch of ``run`` (``pile.py --branch-from``, its source named as
+    ``run`` is; compared after the branch point, its recorded changes named) or a run of the same pile from the start under
+    other settings (:func:`pairing`; compared at every shared time). Differences are read in the
+    seed spreads of the ensemble ``group`` of ``summary`` (an ``ensemble_summary.json`` dict): its
+    feed-end group for snapshots up to the end of the feed, its relaxed group after it.
+
+    :param times: snapshot times [s] to compare (default: all shared ones after the start).
+    :returns: dict ``start_s`` (the branch point, or 0), ``changes`` ({key: (run, other)}),
+        ``branch`` (whether ``other`` is a branch), ``epochs`` (list of dicts ``time_s``,
+        ``spread_group``, ``result``: :func:`paired`) and ``text`` (a markdown report).
+    :raises ValueError: when the runs are not one pile, share no snapshot, or a time is not shared."""
+    from ..analysis.ensemble import run_record
+    from ..pile.protocol import feed_time
+    pr, po = pa.run_parameters(run), pa.run_parameters(other)
+    for d, p in ((run, pr), (other, po)):
+        if not p:
+            raise ValueError('%s holds no pile run (no run.json)' % d)
+    last = (po.get('branches') or [{}])[-1]
+    if os.path.basename(os.path.normpath(last.get('source', ''))) == os.path.basename(os.path.normpath(run)):
+        start, changes, branch = last['time'], last['changes'], True      # other branched from run (by its name: runs are carried)
+    else:
+        start, changes, branch = 0.0, pairing(pr, po), False
+        if not changes:
+            raise ValueError('%s and %s ran the same protocol: nothing to compare' % (run, other))
+    snaps_a = {round(t, 3): p for t, p in pa.list_snapshots(run)}
+    snaps_b = {round(t, 3): p for t, p in pa.list_snapshots(other)}
+    shared = sorted(t for t in set(snaps_a) & set(snaps_b) if t > start + 1e-9)
+    if times is not None:
+        wanted = [round(float(t), 3) for t in times]
+        missing = [t for t in wanted if t not in shared]
+        if missing:
+            raise ValueError('no snapshot at %s in both runs after t = %.3f s (shared: %s)' % (missing, start, shared))
+        shared = wanted
+    if not shared:
+        raise ValueError('the two runs share no snapshot after t = %.3f s' % start)
+    t_feed = feed_time(int(po['n_grains']), po.get('rate'), po.get('dt'))
+    rows, epochs = [], []
+    for t in shared:
+        g = '%s_%s' % (group, 'feed' if t <= t_feed + 1e-6 else 'relaxed')
+        res = paired(run_record(snaps_a[t], pr), run_record(snaps_b[t], po), ensemble_spreads(summary, g))
+        rows.append(('t = %g s%s' % (t, ' (end of feed)' if abs(t - t_feed) < 1e-6 else ''), res))
+        epochs.append({'time_s': t, 'spread_group': g, 'result': res})
+        log('compared t = %g s (spreads of %s)' % (t, g))
+    how = ('branch %s of %s at t = %.3f s' % (other, run, start) if branch
+           else '%s against %s, one pile (seed %s) from the start' % (other, run, po.get('seed')))
+    text = ('%s (%s); differences in seed spreads of the %s-grain ensemble.\n\n'
+            % (how[0].upper() + how[1:], ', '.join('%s %s -> %s' % (k, v[0], v[1]) for k, v in changes.items()), group)
+            + paired_markdown(rows, '%s grains' % group, 'branch' if branch else 'other'))
+    return {'start_s': start, 'changes': changes, 'branch': branch, 'epochs': epochs, 'text': text}
