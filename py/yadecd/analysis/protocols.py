@@ -25,7 +25,9 @@ import numpy as np
 
 from .. import analysis as pa
 from ..io import jsonable
+from ..pile.protocol import PROTOCOL, feed_time, upgrade
 from ..runs import ensemble as ens
+from .ensemble import run_record
 
 # name -> (time step [s], tolerance, further pile.py options); 'paper' is the reference
 SETTINGS = {
@@ -304,7 +306,6 @@ def pairing(params_a, params_b):
     (:func:`yadecd.pile.protocol.upgrade`), :data:`BOOKKEEPING` left out.
 
     :raises ValueError: naming the parameter, when the two are not one pile (:data:`PAIRED_BY`)."""
-    from ..pile.protocol import PROTOCOL, upgrade
     a, b = upgrade(params_a), upgrade(params_b)
 
     def value(p, k):
@@ -324,8 +325,8 @@ def pairing(params_a, params_b):
 def compare_runs(run, other, summary, group, times=None, log=print):
     """One pile under two protocols, observable by observable, at the snapshot times the two runs
     share: ``other`` is either a branch of ``run`` (``pile.py --branch-from``, its source named as
-    ``run`` is; compared after the branch point, its recorded changes named) or a run of the same pile from the start under
-    other settings (:func:`pairing`; compared at every shared time). Differences are read in the
+    ``run`` is; compared after the branch point, its recorded changes named) or a run of the same
+    pile from the start under other settings (:func:`pairing`; compared at every shared time). Differences are read in the
     seed spreads of the ensemble ``group`` of ``summary`` (an ``ensemble_summary.json`` dict): its
     feed-end group for snapshots up to the end of the feed, its relaxed group after it.
 
@@ -334,8 +335,6 @@ def compare_runs(run, other, summary, group, times=None, log=print):
         ``branch`` (whether ``other`` is a branch), ``epochs`` (list of dicts ``time_s``,
         ``spread_group``, ``result``: :func:`paired`) and ``text`` (a markdown report).
     :raises ValueError: when the runs are not one pile, share no snapshot, or a time is not shared."""
-    from ..analysis.ensemble import run_record
-    from ..pile.protocol import feed_time
     pr, po = pa.run_parameters(run), pa.run_parameters(other)
     for d, p in ((run, pr), (other, po)):
         if not p:
@@ -366,9 +365,9 @@ def compare_runs(run, other, summary, group, times=None, log=print):
         rows.append(('t = %g s%s' % (t, ' (end of feed)' if abs(t - t_feed) < 1e-6 else ''), res))
         epochs.append({'time_s': t, 'spread_group': g, 'result': res})
         log('compared t = %g s (spreads of %s)' % (t, g))
-    how = ('branch %s of %s at t = %.3f s' % (other, run, start) if branch
+    how = ('Branch %s of %s at t = %.3f s' % (other, run, start) if branch
            else '%s against %s, one pile (seed %s) from the start' % (other, run, po.get('seed')))
     text = ('%s (%s); differences in seed spreads of the %s-grain ensemble.\n\n'
-            % (how[0].upper() + how[1:], ', '.join('%s %s -> %s' % (k, v[0], v[1]) for k, v in changes.items()), group)
+            % (how, ', '.join('%s %s -> %s' % (k, v[0], v[1]) for k, v in changes.items()), group)
             + paired_markdown(rows, '%s grains' % group, 'branch' if branch else 'other'))
     return {'start_s': start, 'changes': changes, 'branch': branch, 'epochs': epochs, 'text': text}

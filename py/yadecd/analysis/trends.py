@@ -28,6 +28,9 @@ KEYS = {'dip_D': ('central dip D', '', '%+.3f'), 'slope_deg': ('flank slope', '�
 #: 300-grain piles have none, and a central peak that alone can tilt a line over all sizes)
 RANGES = {'all sizes': 0, '≥ 1000 grains': 1000}
 
+#: the smallest piles the largest size is compared against (those with a straight flank)
+LARGEST_MIN_GRAINS = RANGES['≥ 1000 grains']
+
 
 def is_paper_fed(record):
     """Whether a per-run record's pile was fed over the paper's disc (0.8 cm; records written
@@ -58,7 +61,7 @@ def size_trends(records, epochs=('feed', 'relaxed'), ranges=RANGES):
     return out
 
 
-def largest_against_line(records, epoch, key, min_grains=1000):
+def largest_against_line(records, epoch, key, min_grains=LARGEST_MIN_GRAINS):
     """Does the largest size stand off the line of the smaller ones? Per shape with three sizes or
     more of ``min_grains`` and up: the least-squares line of ``key`` on log10(grains) over the
     smaller sizes' piles, the mean of the largest size's m piles, and where the line puts such a
@@ -91,7 +94,7 @@ def largest_against_line(records, epoch, key, min_grains=1000):
     return out
 
 
-def largest_table_markdown(records, epochs=('feed', 'relaxed'), min_grains=1000):
+def largest_table_markdown(records, epochs=('feed', 'relaxed'), min_grains=LARGEST_MIN_GRAINS):
     """One row per shape, epoch and observable of :func:`largest_against_line`."""
     rows = ['| shape | epoch | observable | largest size: piles, their values | their mean | the smaller sizes\' line '
             'there [95 % for a mean of that many piles] | t (df) | one-sided p above the line |',
@@ -226,7 +229,8 @@ def answer_table_markdown(records, epoch='relaxed'):
 
 def analyse_trends(records, out_dir):
     """Write ``answer_table.md`` (slope and D per shape and size, relaxed piles), ``size_trend.md``
-    (the slopes per decade, then the largest size against the smaller sizes' line) and ``size_trend_{dip,slope}.png`` into ``out_dir``; return the trends ({} and nothing written
+    (the slopes per decade, then the largest size against the smaller sizes' line) and
+    ``size_trend_{dip,slope}.png`` into ``out_dir``; return the trends ({} and nothing written
     when no shape has two sizes)."""
     trends = size_trends(records)
     if not trends:
@@ -237,8 +241,8 @@ def analyse_trends(records, out_dir):
         f.write(trend_table_markdown(trends))
         largest = largest_table_markdown(records)
         if largest:
-            f.write('\nThe largest size against the line of the smaller ones (piles of 1000 grains and up; '
-                    '`trends.largest_against_line`):\n\n' + largest)
+            f.write('\nThe largest size against the line of the smaller ones (piles of %d grains and up; '
+                    '`trends.largest_against_line`):\n\n' % LARGEST_MIN_GRAINS + largest)
     fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_dip.png'), 'dip_D')
     fig_size_trend(records, trends, os.path.join(out_dir, 'size_trend_slope.png'), 'slope_deg')
     return trends
