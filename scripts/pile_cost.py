@@ -3,10 +3,13 @@
 contact-sweep, per window of simulated time and per segment (host), from the run's own
 progress.csv and segments.csv (module yadecd.runs.cost).
 
-    python3 scripts/pile_cost.py RUN_DIR [--window 2] [--out DIR]
+    python3 scripts/pile_cost.py RUN_DIR [--window 2] [--out DIR] [--against OTHER_RUN [--bin 400]]
 
 Prints a table and, for an unfinished run, where it stands and about how much wall time it still
-needs at its recent pace; writes cost.csv and cost.png into DIR (default RUN_DIR). A run carried between
+needs at its recent pace; writes cost.csv and cost.png into DIR (default RUN_DIR). --against
+compares the solver's work (contact-sweeps per simulated second, machine-free) with another run
+of the same pile at equal grain counts, e.g. the paper's h = 2e-4 s against h = 1e-3 s, and writes
+against.csv and against.png. A run carried between
 machines ran on hosts of different speed: the ns per contact-sweep column tells them apart. Needs numpy and matplotlib
 only (Debian's /usr/bin/python3 or YADE's).
 """
@@ -45,6 +48,49 @@ def figure(rows, segments, path, title):
     return pf.save_figure(fig, path)
 
 
+def against_figure(rows, path, title):
+    """Sweeps per step of both runs and the ratio of their work per simulated second, by grains."""
+    from yadecd.analysis import figures as pf
+    fig = pf.new_figure(8, 6)
+    ax, bx = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+    g = [0.5 * (r['grains_from'] + r['grains_to']) for r in rows]
+    ax.plot(g, [r['sweeps_per_step'] for r in rows], 'o-', ms=3, label='run')
+    ax.plot(g, [r['other_sweeps_per_step'] for r in rows], 's-', ms=3, label='other')
+    ax.set_ylabel('sweeps per step (sampled)')
+    ax.set_title(title, fontsize=9)
+    bx.plot(g, [r['work_ratio'] for r in rows], 'o-', ms=3, color='k')
+    bx.axhline(1.0, color='0.6', lw=0.8)
+    bx.set_ylabel('contact-sweeps per simulated second,\nrun / other')
+    bx.set_xlabel('grains')
+    bx.set_ylim(bottom=0)
+    for a in (ax, bx):
+        a.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return pf.save_figure(fig, path)
+
+
+def against(run, other, bin_grains, out):
+    """Print and save the work of ``run`` against ``other`` by grains (yadecd.runs.cost.compare_work)."""
+    from yadecd.io import write_csv
+    from yadecd.runs import cost as runcost
+    from yadecd import analysis as pa
+    rows = []
+    for d in (run, other):
+        dt = pa.run_parameters(d).get('dt')
+        if not dt:
+            raise ValueError('%s holds no run.json with the time step' % d)
+        rows.append(runcost.work_by_grains(runcost.read_progress(os.path.join(d, 'progress.csv')), dt, bin_grains))
+    cmp = runcost.compare_work(*rows)
+    print('work against %s (contact-sweeps per simulated second; sweeps sampled once per progress line)' % other)
+    print('%13s %10s %10s %9s' % ('grains', 'sweeps run', 'sw. other', 'run/other'))
+    for r in cmp:
+        print('%6d-%-6d %10.0f %10.0f %9.2f' % (r['grains_from'], r['grains_to'], r['sweeps_per_step'],
+                                                 r['other_sweeps_per_step'], r['work_ratio']))
+    write_csv(os.path.join(out, 'against.csv'), cmp)
+    print('wrote %s' % against_figure(cmp, os.path.join(out, 'against.png'), '%s against %s' % (
+        os.path.basename(os.path.abspath(run)), os.path.basename(os.path.abspath(other)))))
+
+
 def standing(run):
     """One line: finished, or where the run stands and the wall time it still needs at its recent
     pace (yadecd.runs.ensemble.progress_of, the estimate ``pile_ensemble.py status`` gives)."""
@@ -66,9 +112,16 @@ def main(argv=None):
     p.add_argument('run')
     p.add_argument('--window', type=float, default=2.0, help='window of simulated time [s]')
     p.add_argument('--out', default=None, help='output directory (default RUN_DIR)')
+    p.add_argument('--against', default=None, metavar='OTHER_RUN',
+                   help='another run of the same pile: compare the solver work per simulated second by grains')
+    p.add_argument('--bin', type=int, default=400, help='grain bin width of --against')
     args = p.parse_args(argv)
     if not args.window > 0:
         p.error('--window must be > 0')
+    if args.bin <= 0:
+        p.error('--bin must be > 0')
+    if args.against and not os.path.exists(os.path.join(args.against, 'progress.csv')):
+        p.error('--against %s holds no progress.csv' % args.against)
     progress = os.path.join(args.run, 'progress.csv')
     if not os.path.exists(progress):
         p.error('%s holds no progress.csv' % args.run)
@@ -97,6 +150,11 @@ def main(argv=None):
     path = figure(rows, segments, os.path.join(out, 'cost.png'),
                   '%s: %d grains, h = %g s' % (os.path.basename(os.path.abspath(args.run)), params.get('n_grains', 0), dt))
     print('wrote %s' % path)
+    if args.against:
+        try:
+            against(args.run, args.against, args.bin, out)
+        except ValueError as e:
+            p.error(str(e))
     return 0
 
 

@@ -138,6 +138,64 @@ class TestRemainingWall(unittest.TestCase):
         self.assertAlmostEqual(runcost.remaining_wall(slow_start, 9.0, 8.0), whole, delta=1e-9 * whole)
 
 
+def fed_record(dt, sweeps_pattern, steps_pattern, n_lines=200, rate=250.0):
+    """A fed run's progress lines: intervals of ``steps_pattern`` steps in turn (uneven, as the
+    wall-time clock of the progress lines makes them), grains = rate·t, contacts = 3·grains, and
+    the sampled step's sweeps ``sweeps_pattern`` in turn."""
+    rows, n = [], 0
+    for k in range(n_lines):
+        n += steps_pattern[k % len(steps_pattern)]
+        t = n * dt
+        g = int(rate * t + 1e-9)
+        rows.append((t, g, 3 * g, sweeps_pattern[k % len(sweeps_pattern)], 1e-3, float(k)))
+    return dict(zip(('time_s', 'grains', 'contacts', 'sweeps', 'residual', 'wall_s'), np.array(rows, dtype=float).T))
+
+
+class TestWorkByGrains(unittest.TestCase):
+    """work_by_grains / compare_work: the machine-free work per simulated second of two runs of
+    one pile, on constructed records whose answer is known."""
+
+    def test_step_weighted_sweeps_and_the_ratio(self):
+        """Sweeps 100 and 300 sampled after 10 and 30 steps in turn: the steps' mean is 250 (the
+        lines' plain mean would be 200). Against a run at 5× the time step with 500 sweeps a step
+        on the same grains, the work per simulated second is 5·250/500 = 2.5× (the contacts are the
+        same function of the grains). At 250 grains/s a pair of lines spans 2 grains, so every bin of
+        50 holds as many lines of each kind."""
+        a = fed_record(2e-4, (100, 300), (10, 30), n_lines=2000)
+        b = fed_record(1e-3, (500,), (8,), n_lines=2000)
+        ra, rb = runcost.work_by_grains(a, 2e-4, 50), runcost.work_by_grains(b, 1e-3, 50)
+        for r in ra[1:]:
+            self.assertEqual(r['sweeps_per_step'], 250.0)
+        for r in rb:
+            self.assertEqual(r['sweeps_per_step'], 500.0)
+            # 1000 steps per simulated second, 500 sweeps, contacts of the bin's steps
+            self.assertAlmostEqual(r['contact_sweeps_per_sim_s'], 1000 * 500 * r['contacts'], delta=1e-6 * r['contact_sweeps_per_sim_s'])
+        cmp = runcost.compare_work(ra, rb)
+        self.assertGreaterEqual(len(cmp), 5)
+        for r in cmp[1:]:
+            self.assertAlmostEqual(r['work_ratio'], 2.5 * r['contacts'] / r['other_contacts'], delta=1e-9)
+            self.assertAlmostEqual(r['work_ratio'], 2.5, delta=0.01)
+
+    def test_sparse_bins_repeated_lines_and_bad_input(self):
+        """A bin with fewer than min_lines intervals is left out; a zero-length interval (a line
+        repeated at a resume) counts for nothing; bins of different widths, no shared bin and a
+        zero width are refused with the culprit named."""
+        a = fed_record(1e-3, (200,), (8,), n_lines=60)        # grains 2 .. 120 by 2
+        rows = runcost.work_by_grains(a, 1e-3, 50)
+        self.assertEqual([r['grains_from'] for r in rows], [0, 50, 100])
+        self.assertEqual(rows[-1]['intervals'], 11)           # grains 100..120
+        self.assertEqual([r['grains_from'] for r in runcost.work_by_grains(a, 1e-3, 50, min_lines=12)], [0, 50])
+        rep = {k: np.insert(v, 30, v[29]) for k, v in a.items()}   # line 29 written twice
+        self.assertEqual(runcost.work_by_grains(rep, 1e-3, 50), rows)
+        with self.assertRaisesRegex(ValueError, 'different widths'):
+            runcost.compare_work(rows, runcost.work_by_grains(a, 1e-3, 40))
+        far = fed_record(1e-3, (200,), (8,), n_lines=60, rate=2500.0)    # grains 20 .. 1200 by 20
+        with self.assertRaisesRegex(ValueError, 'share no grain bin'):
+            runcost.compare_work(rows, [r for r in runcost.work_by_grains(far, 1e-3, 50) if r['grains_from'] >= 150])
+        with self.assertRaisesRegex(ValueError, 'bin_grains'):
+            runcost.work_by_grains(a, 1e-3, 0)
+
+
 class TestPileCostCommand(unittest.TestCase):
     """``pile_cost.py RUN``: the window table, then where an unfinished run stands and the wall
     time it still needs at its recent pace (the ensemble status's estimate); 'finished' once done."""
@@ -166,6 +224,35 @@ class TestPileCostCommand(unittest.TestCase):
             r = run()
             self.assertEqual(r.returncode, 0, r.stderr)
             self.assertRegex(r.stdout, r'\nfinished\n')
+
+    def test_against(self):
+        """``--against OTHER``: the work table by grains, against.csv and against.png written; an
+        other run without a progress record is refused by name."""
+        script = os.path.join(SCRIPTS, 'pile_cost.py')
+        python = '/usr/bin/python3' if os.path.exists('/usr/bin/python3') else sys.executable
+        with tempfile.TemporaryDirectory() as d:
+            runs = []
+            for name, dt, sweeps, steps in (('a', 2e-4, (100, 300), (10, 30)), ('b', 1e-3, (500,), (8,))):
+                rd = os.path.join(d, name)
+                os.makedirs(rd)
+                with open(os.path.join(rd, 'run.json'), 'w') as f:
+                    json.dump({'n_grains': 1000, 'rate': 250.0, 'dt': dt, 'relax': 1.0}, f)
+                rec = fed_record(dt, sweeps, steps, n_lines=1000)
+                with open(os.path.join(rd, 'progress.csv'), 'w') as f:
+                    f.write('time_s,grains,contacts,sweeps,residual,wall_s\n')
+                    for row in zip(*(rec[k] for k in ('time_s', 'grains', 'contacts', 'sweeps', 'residual', 'wall_s'))):
+                        f.write('%.6f,%d,%d,%d,%.3e,%.1f\n' % row)
+                runs.append(rd)
+            r = subprocess.run([python, script, runs[0], '--out', d, '--against', runs[1], '--bin', '50'],
+                               capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertRegex(r.stdout, r'\n +50-100 +250 +500 +2\.50\n')
+            self.assertTrue(os.path.exists(os.path.join(d, 'against.csv')))
+            self.assertTrue(os.path.exists(os.path.join(d, 'against.png')))
+            r = subprocess.run([python, script, runs[0], '--out', d, '--against', d],
+                               capture_output=True, text=True, timeout=120)
+            self.assertNotEqual(r.returncode, 0)
+            self.assertIn('--against %s holds no progress.csv' % d, r.stderr)
 
 
 if __name__ == '__main__':
