@@ -20,13 +20,27 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.realpath(sys.argv[0])), 
 
 
 
+def axes_pair(title, top, bottom, xlabel, size=(9, 6.5)):
+    """A figure of two panels sharing their grains axis: labels, title and grid set, the lower
+    panel from zero. Returns (pf, fig, ax, bx), pf the figures module that saves it."""
+    from yadecd.analysis import figures as pf
+    fig = pf.new_figure(*size)
+    ax, bx = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+    ax.set_title(title, fontsize=9)
+    ax.set_ylabel(top)
+    bx.set_ylabel(bottom)
+    bx.set_xlabel(xlabel)
+    for a in (ax, bx):
+        a.grid(alpha=0.3)
+    return pf, fig, ax, bx
+
+
 def figure(rows, segments, path, title):
     """Wall time per simulated second and all-in ns per contact-sweep along the run, one colour
     per segment, into ``path``."""
-    from yadecd.analysis import figures as pf
     import numpy as np
-    fig = pf.new_figure(9, 6.5)
-    ax, bx = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+    pf, fig, ax, bx = axes_pair(title, 'wall time per simulated second [s]', 'all-in cost per contact-sweep [ns]',
+                                'grains at the end of the window')
     for seg in sorted({r['segment'] for r in rows}):
         sel = [r for r in rows if r['segment'] == seg]
         label = ('before segments were recorded' if seg < 0 else
@@ -35,37 +49,26 @@ def figure(rows, segments, path, title):
         ax.plot(g, [r['wall_per_sim_s'] for r in sel], 'o-', ms=3, label=label)
         bx.plot(g, [r['ns_per_contact_sweep'] for r in sel], 'o-', ms=3, label=label)
     ax.set_yscale('log')
-    ax.set_ylabel('wall time per simulated second [s]')
-    ax.set_title(title, fontsize=9)
-    bx.set_ylabel('all-in cost per contact-sweep [ns]')
-    bx.set_xlabel('grains at the end of the window')
     bx.set_ylim(bottom=0)
-    for a in (ax, bx):
-        a.grid(alpha=0.3)
-        a.legend(fontsize=6)
+    ax.legend(fontsize=6)
+    bx.legend(fontsize=6)
     bx.text(0.01, 0.97, 'wall time / Σ steps × contacts × sweeps (sweeps sampled once per progress line)',
             transform=bx.transAxes, fontsize=6, va='top')
     return pf.save_figure(fig, path)
 
 
-def against_figure(rows, path, title):
-    """Sweeps per step of both runs and the ratio of their work per simulated second, by grains."""
-    from yadecd.analysis import figures as pf
-    fig = pf.new_figure(8, 6)
-    ax, bx = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+def against_figure(rows, path, names):
+    """Sweeps per step of both runs (``names``: run, other) and the ratio of their work per
+    simulated second, by grains."""
+    pf, fig, ax, bx = axes_pair('%s against %s' % names, 'sweeps per step (sampled)',
+                                'contact-sweeps per simulated second,\n%s / %s' % names, 'grains', size=(8, 6))
     g = [0.5 * (r['grains_from'] + r['grains_to']) for r in rows]
-    ax.plot(g, [r['sweeps_per_step'] for r in rows], 'o-', ms=3, label='run')
-    ax.plot(g, [r['other_sweeps_per_step'] for r in rows], 's-', ms=3, label='other')
-    ax.set_ylabel('sweeps per step (sampled)')
-    ax.set_title(title, fontsize=9)
+    ax.plot(g, [r['sweeps_per_step'] for r in rows], 'o-', ms=3, label=names[0])
+    ax.plot(g, [r['other_sweeps_per_step'] for r in rows], 's-', ms=3, label=names[1])
+    ax.legend(fontsize=7)
     bx.plot(g, [r['work_ratio'] for r in rows], 'o-', ms=3, color='k')
     bx.axhline(1.0, color='0.6', lw=0.8)
-    bx.set_ylabel('contact-sweeps per simulated second,\nrun / other')
-    bx.set_xlabel('grains')
     bx.set_ylim(bottom=0)
-    for a in (ax, bx):
-        a.grid(alpha=0.3)
-    ax.legend(fontsize=7)
     return pf.save_figure(fig, path)
 
 
@@ -87,8 +90,8 @@ def against(run, other, bin_grains, out):
         print('%6d-%-6d %10.0f %10.0f %9.2f' % (r['grains_from'], r['grains_to'], r['sweeps_per_step'],
                                                  r['other_sweeps_per_step'], r['work_ratio']))
     write_csv(os.path.join(out, 'against.csv'), cmp)
-    print('wrote %s' % against_figure(cmp, os.path.join(out, 'against.png'), '%s against %s' % (
-        os.path.basename(os.path.abspath(run)), os.path.basename(os.path.abspath(other)))))
+    names = tuple(os.path.basename(os.path.abspath(d)) for d in (run, other))
+    print('wrote %s' % against_figure(cmp, os.path.join(out, 'against.png'), names))
 
 
 def standing(run):
