@@ -8,7 +8,7 @@ Runs build/cd_core_bench on a saved step (scripts/bench/save_step.py) in eight s
 interleaved, each alone and beside one busy-looping process (what a second simulation, a build or
 a benchmark does to a two-core machine): 1 thread; 2 threads at any size (parallelMinContacts 0);
 the same with OMP_WAIT_POLICY=passive; 2 threads with the default parallelMinContacts (serial
-sweeps below 10 000 contacts). Prints and saves the step's solve +
+sweeps below 2 000 contacts; 10 000 when docs/data/oversubscription.csv was measured). Prints and saves the step's solve +
 correction time [ms] per setting (best of --repeat inside each run; median over rounds) and its
 ratio to one thread alone. Nothing else may run meanwhile (pause long jobs with kill -STOP).
 """
@@ -78,7 +78,7 @@ def main():
         med = statistics.median(times[name])
         rows.append(dict(date=datetime.date.today().isoformat(), problem=os.path.basename(a.problem), setting=name,
                          threads=threads, busy_competitor=busy, omp_wait_policy=extra.get('OMP_WAIT_POLICY', 'default'),
-                         parallel_min_contacts='0' if options else 'default (10000)',
+                         parallel_min_contacts='0' if options else 'default',
                          step_ms_median='%.1f' % med, rounds=' '.join('%.1f' % t for t in times[name]),
                          over_1_thread_alone='%.2f' % (med / base)))
         print('%-52s median %9.1f ms   x%.2f of 1 thread alone' % (name, med, med / base))

@@ -135,7 +135,7 @@ namespace cd {
 		Real     positionTolerance = 1e-6;
 		int      maxProjectionIter = 200;
 		bool     correctionMomentum = false; // Nesterov's momentum in the position correction too (opt-in: see the integrator's attribute)
-		long     parallelMinContacts = 10000; // fewer contacts: the per-sweep stages run on the calling thread (same results; not a problem option, not in problem files)
+		long     parallelMinContacts = 2000;  // fewer contacts: the per-sweep stages run on the calling thread (same results; not a problem option, not in problem files)
 		// Sweeps that follow the work (Solver.cpp, "worklist"): after worklistFullSweeps full
 		// sweeps, a sweep visits only the contacts one of whose bodies an update changed
 		// significantly in the sweep before or earlier in this one; a quiet partial sweep is
