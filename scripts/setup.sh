@@ -44,7 +44,7 @@ fi
 if [ -f "$YADE_PREFIX/.complete" ]; then
   say "YADE $YADE_VERSION: cached at $YADE_PREFIX"
 else
-  say "YADE $YADE_VERSION is not built yet: first build takes about 10-12 min on 2 cores (unity build, measured 10 min)."
+  say "YADE $YADE_VERSION is not built yet: first build takes about 10-20 min on 2 cores (unity build, measured 10 to 19 min by host)."
   SRC_ROOT="$YADE_CD_HOME/src"; mkdir -p "$SRC_ROOT"
   if [ -n "${YADE_SOURCE:-}" ] && [ -d "$YADE_SOURCE" ]; then
     SRC="$YADE_SOURCE"
