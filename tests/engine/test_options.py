@@ -181,6 +181,42 @@ class TestOneDefinition(unittest.TestCase):
             self.assertEqual(value, documented[name], name)
             self.assertEqual(type(value) is bool, type(documented[name]) is bool, name)
 
+    #: solver options that are the engine's alone (contact detection and logging, not the solve)
+    ENGINE_ONLY = {'alertRatio', 'alertSpeedFactor', 'warnUnconverged'}
+
+    @staticmethod
+    def core_params_defaults():
+        """``{name: default}`` of the fields of ``struct Params`` in pkg/cd/core/Problem.hpp that
+        are initialised with a number or a bool (the core tests and ``cd_core_bench`` solve with
+        these when a problem file does not set them)."""
+        with open(os.path.join(REPO, 'pkg', 'cd', 'core', 'Problem.hpp')) as f:
+            text = f.read()
+        m = re.search(r'struct Params \{(.*?)\n\t\};', text, re.S)
+        assert m, 'struct Params not found in pkg/cd/core/Problem.hpp'
+        out = {}
+        for name, literal in re.findall(r'^\s*(?:Real|int|long|bool)\s+(\w+)\s*=\s*([^;]+);', m.group(1), re.M):
+            literal = literal.strip()
+            out[name] = literal == 'true' if literal in ('true', 'false') else (
+                float(literal) if re.search(r'[.eE]', literal) else int(literal))
+        return out
+
+    def test_core_params_defaults_are_the_engine_s(self):
+        """The solver core's own defaults (cd::Params, used by the core tests and the core
+        benchmark) are the engine's attribute defaults: the two are written separately, and a
+        default changed in one would make the benchmark solve another problem than a script."""
+        core = self.core_params_defaults()
+        self.assertGreater(len(core), 15)     # the parse found the struct's fields
+        engine = yadecd.solver_options()
+        codes = {name: code for code, name in CODES.items()}   # Params::schedule is sweepOrder's code
+        for name, value in engine.items():
+            if name in self.ENGINE_ONLY:
+                self.assertNotIn(name, core)
+                continue
+            self.assertIn(name, core, 'cd::Params has no default for the engine option %s' % name)
+            expected = codes[value] if name == 'schedule' else value
+            self.assertEqual(core[name], expected, name)
+            self.assertEqual(type(core[name]) is bool, type(expected) is bool, name)
+
     def test_every_settable_attribute_is_accounted_for(self):
         inherited = set(NewtonIntegrator().dict())
         declared = set(ContactDynamicsIntegrator().dict()) - inherited
