@@ -33,7 +33,8 @@ class TestCore(unittest.TestCase):
         proc = subprocess.run([self.binary('cd_core_bench'), os.path.join(CORE_DATA, 'fcc108_boxed.cdp'), '--k1', '2', '--k2', '4',
                                '--repeat', '1'], capture_output=True, text=True, timeout=120)
         self.assertEqual(proc.returncode, 0, proc.stdout + proc.stderr)
-        self.assertRegex(proc.stdout, r'time per contact-sweep: [0-9.]+ ns')
+        # a difference of two timings: on a busy machine it may be noise, which the benchmark reports as such
+        self.assertRegex(proc.stdout, r'time per contact-sweep: ([0-9.]+ ns \(sweeps 2 and 4|not resolved \(the solve with 4 sweeps)')
         bad = subprocess.run([self.binary('cd_core_bench'), os.path.join(CORE_DATA, 'missing.cdp')], capture_output=True, text=True)
         self.assertEqual(bad.returncode, 1)
         self.assertIn('missing.cdp: cannot be opened', bad.stderr)

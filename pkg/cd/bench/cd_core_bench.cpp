@@ -232,7 +232,14 @@ int main(int argc, char** argv)
 		            step.interface, step.assemble * 1e3, step.solve * 1e3, step.correct * 1e3);
 		std::printf("  schedule: %s (%d interface contacts, %d of them touching three parts or more)\n", step.stages.c_str(), step.interface, step.wide);
 		if (p.worklist) std::printf("  worklist: threshold %g x tolerance x |q| / sqrt(contacts), %d full sweeps first\n", double(p.worklistThreshold), p.worklistFullSweeps);
-		if (timeSweeps) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
+		if (timeSweeps) {
+			// The figure is a difference of two timings: on a small step or a busy machine the noise can exceed it,
+			// and a zero or negative difference says nothing about the cost; say so instead of printing it.
+			if (ns > 0) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
+			else
+				std::printf("  time per contact-sweep: not resolved (the solve with %d sweeps took no longer than with %d: timer noise; "
+				            "raise --repeat or --k2)\n", k2, k1);
+		}
 		if (!history.empty()) {
 			cd::Params q     = p;
 			q.recordResidual = true;
