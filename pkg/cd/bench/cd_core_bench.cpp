@@ -224,6 +224,9 @@ int main(int argc, char** argv)
 		if (timeSweeps) {
 			const double t1 = bestForcedSolve(pb, p, k1, repeat), t2 = bestForcedSolve(pb, p, k2, repeat);
 			ns              = (t2 - t1) / (k2 - k1) / double(step.contacts) * 1e9;
+			// a difference of two timings: on a small step or a busy machine the noise can exceed it, and a zero or
+			// negative difference says nothing about the cost: no figure (NaN, as without --time-sweeps), here and in --csv
+			if (!(ns > 0)) ns = std::nan("");
 		}
 		std::printf("%s: %zu bodies, %ld contacts; schedule %d, slabs %d x %d, momentum %d, sphere kernel %d, %d thread(s)\n", file.c_str(),
 		            pb.bodies.size(), step.contacts, p.schedule, p.slabs, p.slabsAcross, int(p.momentum), int(p.sphereFastPath), threads);
@@ -233,9 +236,7 @@ int main(int argc, char** argv)
 		std::printf("  schedule: %s (%d interface contacts, %d of them touching three parts or more)\n", step.stages.c_str(), step.interface, step.wide);
 		if (p.worklist) std::printf("  worklist: threshold %g x tolerance x |q| / sqrt(contacts), %d full sweeps first\n", double(p.worklistThreshold), p.worklistFullSweeps);
 		if (timeSweeps) {
-			// The figure is a difference of two timings: on a small step or a busy machine the noise can exceed it,
-			// and a zero or negative difference says nothing about the cost; say so instead of printing it.
-			if (ns > 0) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
+			if (!std::isnan(ns)) std::printf("  time per contact-sweep: %.2f ns (sweeps %d and %d, best of %d)\n", ns, k1, k2, repeat);
 			else
 				std::printf("  time per contact-sweep: not resolved (the solve with %d sweeps took no longer than with %d: timer noise; "
 				            "raise --repeat or --k2)\n", k2, k1);
